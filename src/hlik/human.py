@@ -1,0 +1,83 @@
+"""Human forward kinematics on the MMM reference model scaled to the subject.
+
+The model file is normalised to a 1 m tall subject; :func:`human_model` scales every length with
+``mujoco.MjSpec`` so one file serves every subject height.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from hlik.motion import HumanMotion
+from hlik.paths import robots_dir
+
+SIDES = ("left", "right")
+
+
+@dataclass(frozen=True, eq=False)
+class HumanKinematics:
+    """Arm joint centres and TCP poses over time; arm index 0 = left, 1 = right; metres, world.
+
+    Attributes:
+        shoulder, elbow, wrist, tcp_pos: (T, 2, 3) positions.
+        tcp_rot: (T, 2, 3, 3) TCP orientations (z = approach, x = palm normal).
+    """
+
+    shoulder: np.ndarray
+    elbow: np.ndarray
+    wrist: np.ndarray
+    tcp_pos: np.ndarray
+    tcp_rot: np.ndarray
+
+
+def human_model(height: float) -> mujoco.MjModel:
+    """The MMM model scaled to a subject of ``height`` metres."""
+    spec = mujoco.MjSpec.from_file(str(robots_dir() / "mjcf" / "mmm.xml"))
+    for body in spec.bodies:
+        body.pos = np.asarray(body.pos) * height
+    for site in spec.sites:
+        site.pos = np.asarray(site.pos) * height
+    for geom in spec.geoms:
+        geom.pos = np.asarray(geom.pos) * height
+        geom.size = np.asarray(geom.size) * height
+        fromto = np.asarray(geom.fromto)
+        if np.all(np.isfinite(fromto)):
+            geom.fromto = fromto * height
+    return spec.compile()
+
+
+def qpos_trajectory(model: mujoco.MjModel, motion: HumanMotion) -> np.ndarray:
+    """(T, nq) MuJoCo configurations of ``model`` for every frame of ``motion``.
+
+    Joints are matched by name; recorded joints the model lacks (fingers, clavicles) are ignored.
+    """
+    qpos = np.zeros((motion.n_frames, model.nq))
+    qpos[:, :3] = motion.root_position
+    quat = np.empty((motion.n_frames, 4))
+    for k, rot in enumerate(motion.root_rotation):
+        mujoco.mju_mat2Quat(quat[k], rot.ravel())
+    qpos[:, 3:7] = quat
+    for i, name in enumerate(motion.joint_names):
+        jid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name)
+        if jid >= 0:
+            qpos[:, model.jnt_qposadr[jid]] = motion.joints[:, i]
+    return qpos
+
+
+def forward_kinematics(motion: HumanMotion) -> HumanKinematics:
+    """Joint centres and TCP poses of both arms for every frame of ``motion``."""
+    model = human_model(motion.height)
+    data = mujoco.MjData(model)
+    names = ("shoulder", "elbow", "wrist", "tcp")
+    ids = np.array([[model.site(f"{s}_{n}").id for s in SIDES] for n in names])
+    pos = np.empty((motion.n_frames, 4, 2, 3))
+    rot = np.empty((motion.n_frames, 2, 3, 3))
+    for k, q in enumerate(qpos_trajectory(model, motion)):
+        data.qpos[:] = q
+        mujoco.mj_kinematics(model, data)
+        pos[k] = data.site_xpos[ids]
+        rot[k] = data.site_xmat[ids[3]].reshape(2, 3, 3)
+    return HumanKinematics(pos[:, 0], pos[:, 1], pos[:, 2], pos[:, 3], rot)

@@ -1,0 +1,231 @@
+"""Recorded human motion on the MMM model: the first stage of hlik's data flow.
+
+A :class:`HumanMotion` holds what an MMM file records about the subject (joint angles by name,
+root pose, markers, height) and the objects of the scene, in SI units on one time base.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+from scipy.interpolate import CubicSpline
+from scipy.spatial.transform import Rotation, Slerp
+
+if TYPE_CHECKING:
+    from hlik.human import HumanKinematics
+
+# The 14 MMM arm joints every motion must carry (kinematics.md §1.2), proximal -> distal, in the
+# order of the paper's Table I (s_x, s_y, s_z, e_x, e_z, w_x, w_z=w_y).
+ARM_JOINTS: dict[str, tuple[str, ...]] = {
+    side: tuple(f"{p}{j}_joint" for j in ("Sx", "Sy", "Sz", "Ex", "Ez", "Wx", "Wy"))
+    for side, p in (("left", "L"), ("right", "R"))
+}
+
+_MIRROR = np.diag([-1.0, 1.0, 1.0])  # reflection through the sagittal plane (x = right)
+
+
+@dataclass(frozen=True, eq=False)
+class ObjectMotion:
+    """Pose of a scene object on the motion's time base.
+
+    Attributes:
+        name: Object name as recorded.
+        position: (T, 3) origin position in the world, metres.
+        rotation: (T, 3, 3) orientation in the world.
+        markers: Marker name -> (T, 3) positions in metres.
+    """
+
+    name: str
+    position: np.ndarray
+    rotation: np.ndarray
+    markers: Mapping[str, np.ndarray] = field(default_factory=dict)
+
+
+@dataclass(frozen=True, eq=False)
+class HumanMotion:
+    """A human motion on the MMM reference model.
+
+    Attributes:
+        name: Motion name (the file's stem by default).
+        times: (T,) strictly increasing timestamps in seconds.
+        joint_names: The J recorded joint names (MMM names, e.g. ``LSx_joint``).
+        joints: (T, J) joint angles in radians; columns follow ``joint_names``.
+        root_position: (T, 3) root (hip-level) position in the world, metres.
+        root_rotation: (T, 3, 3) root orientation in the world.
+        height: Subject height in metres (the MMM model is scaled to it).
+        mass: Subject mass in kg, if recorded.
+        markers: Marker name -> (T, 3) positions in metres.
+        objects: Object name -> :class:`ObjectMotion`.
+        source: File the motion was read from, if any.
+    """
+
+    name: str
+    times: np.ndarray
+    joint_names: tuple[str, ...]
+    joints: np.ndarray
+    root_position: np.ndarray
+    root_rotation: np.ndarray
+    height: float
+    mass: float | None = None
+    markers: Mapping[str, np.ndarray] = field(default_factory=dict)
+    objects: Mapping[str, ObjectMotion] = field(default_factory=dict)
+    source: Path | None = None
+
+    @property
+    def n_frames(self) -> int:
+        return len(self.times)
+
+    @property
+    def duration(self) -> float:
+        return float(self.times[-1] - self.times[0])
+
+    @property
+    def rate(self) -> float:
+        """Median frame rate in Hz."""
+        return float(1.0 / np.median(np.diff(self.times)))
+
+    def joint(self, name: str) -> np.ndarray:
+        """(T,) angles of one joint, by name."""
+        try:
+            return self.joints[:, self.joint_names.index(name)]
+        except ValueError:
+            raise KeyError(f"{self.name}: no joint {name!r}") from None
+
+    def angles(self, names: Sequence[str]) -> np.ndarray:
+        """(T, k) angles of the named joints, in the order given."""
+        return np.stack([self.joint(n) for n in names], axis=1)
+
+    def kinematics(self) -> HumanKinematics:
+        """Joint centres and TCP poses of both arms (see :mod:`hlik.human`)."""
+        from hlik.human import forward_kinematics
+
+        return forward_kinematics(self)
+
+    def crop(self, start: float, stop: float) -> HumanMotion:
+        """The frames with ``start <= t - t0 <= stop`` (seconds from the first frame)."""
+        t = self.times - self.times[0]
+        keep = (t >= start - 1e-9) & (t <= stop + 1e-9)
+        return self._take(keep)
+
+    def resample(self, rate: float) -> HumanMotion:
+        """Resample to ``rate`` Hz: cubic splines for angles and positions, slerp for rotations."""
+        if rate <= 0:
+            raise ValueError(f"{self.name}: resampling rate must be positive, got {rate}")
+        t_new = self.times[0] + np.arange(0.0, self.duration + 1e-9, 1.0 / rate)
+        return replace(
+            self,
+            times=t_new,
+            joints=_spline(self.times, self.joints, t_new),
+            root_position=_spline(self.times, self.root_position, t_new),
+            root_rotation=_slerp(self.times, self.root_rotation, t_new),
+            markers={k: _spline(self.times, v, t_new) for k, v in self.markers.items()},
+            objects={
+                k: replace(
+                    o,
+                    position=_spline(self.times, o.position, t_new),
+                    rotation=_slerp(self.times, o.rotation, t_new),
+                    markers={m: _spline(self.times, v, t_new) for m, v in o.markers.items()},
+                )
+                for k, o in self.objects.items()
+            },
+        )
+
+    def mirrored(self) -> HumanMotion:
+        """The left-right mirror image (reflection x -> -x of the whole scene).
+
+        Left and right joints, markers and objects swap; a joint about the x axis keeps its angle,
+        one about y or z changes sign, because a reflection reverses the sense of rotation about
+        axes lying in the mirror plane.
+        """
+        names = self.joint_names
+        src = [names.index(_swap_side(n)) if _swap_side(n) in names else i for i, n in enumerate(names)]
+        sign = np.array([_mirror_sign(n) for n in names])
+        markers = _mirror_points(self.markers)
+        objects = {
+            k: replace(
+                o,
+                position=o.position @ _MIRROR,
+                rotation=_MIRROR @ o.rotation @ _MIRROR,
+                markers=_mirror_points(o.markers),
+            )
+            for k, o in self.objects.items()
+        }
+        return replace(
+            self,
+            name=f"{self.name}_mirrored",
+            joints=self.joints[:, src] * sign,
+            root_position=self.root_position @ _MIRROR,
+            root_rotation=_MIRROR @ self.root_rotation @ _MIRROR,
+            markers=markers,
+            objects=objects,
+        )
+
+    def _take(self, keep: np.ndarray) -> HumanMotion:
+        return replace(
+            self,
+            times=self.times[keep],
+            joints=self.joints[keep],
+            root_position=self.root_position[keep],
+            root_rotation=self.root_rotation[keep],
+            markers={k: v[keep] for k, v in self.markers.items()},
+            objects={
+                k: replace(
+                    o,
+                    position=o.position[keep],
+                    rotation=o.rotation[keep],
+                    markers={m: v[keep] for m, v in o.markers.items()},
+                )
+                for k, o in self.objects.items()
+            },
+        )
+
+
+def load_motion(path: str | Path, rate: float | None = None) -> HumanMotion:
+    """Read an MMM motion file (MMM 2.0 or legacy), optionally resampled to ``rate`` Hz.
+
+    Raises:
+        hlik.errors.MotionFormatError: the file is missing, malformed or inconsistent.
+    """
+    from hlik.mmm_format import read_mmm
+
+    motion = read_mmm(Path(path))
+    return motion if rate is None else motion.resample(rate)
+
+
+def _spline(t: np.ndarray, y: np.ndarray, t_new: np.ndarray) -> np.ndarray:
+    if len(t) < 4:  # a cubic needs 4 knots; fall back to linear on very short motions
+        return np.stack([np.interp(t_new, t, c) for c in y.reshape(len(t), -1).T], -1).reshape(
+            (len(t_new), *y.shape[1:])
+        )
+    return CubicSpline(t, y, axis=0)(t_new)
+
+
+def _slerp(t: np.ndarray, rot: np.ndarray, t_new: np.ndarray) -> np.ndarray:
+    return Slerp(t, Rotation.from_matrix(rot))(np.clip(t_new, t[0], t[-1])).as_matrix()
+
+
+def _swap_side(name: str) -> str:
+    if name.startswith("Left"):
+        return "Right" + name[4:]
+    if name.startswith("Right"):
+        return "Left" + name[5:]
+    if len(name) > 1 and name[0] in "LR" and name[1].isupper():
+        return {"L": "R", "R": "L"}[name[0]] + name[1:]
+    return name
+
+
+def _mirror_sign(joint_name: str) -> float:
+    axis = joint_name.removesuffix("_joint")[-1:]
+    return -1.0 if axis in ("y", "z") else 1.0
+
+
+def _mirror_points(points: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
+    out = {}
+    for name, p in points.items():
+        other = _swap_side(name)
+        out[other if other in points else name] = p @ _MIRROR
+    return out

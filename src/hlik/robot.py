@@ -1,0 +1,146 @@
+"""Robot descriptions: an MJCF model plus ``robots/<name>.toml`` (arms, limits, home, mapping)."""
+
+from __future__ import annotations
+
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from hlik.errors import RobotError
+from hlik.mapping import JointMapping
+from hlik.paths import robots_dir
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+SIDES = ("left", "right")
+SITES = ("shoulder", "elbow", "wrist", "tcp")
+
+
+@dataclass(frozen=True, eq=False)
+class Robot:
+    """A robot hlik retargets to.
+
+    Attributes:
+        name: Short name (``armar3``, ``armar6``, ``dual_panda``).
+        title: Display name.
+        mjcf: Path of the MJCF model.
+        model: The compiled MuJoCo model; ``qpos`` holds exactly the robot's joints.
+        joint_names: (n,) joint names in ``qpos`` order.
+        arm_joints: Side -> arm joint names, proximal to distal.
+        extra_joints: Non-arm joints solved with the arms (ARMAR-III's hip).
+        lower, upper: (n,) joint limits in rad; ``-inf``/``inf`` for unlimited joints.
+        home: (n,) home configuration in rad.
+        mapping: The MMM -> robot joint mapping of the arm joints.
+    """
+
+    name: str
+    title: str
+    mjcf: Path
+    model: mujoco.MjModel
+    joint_names: tuple[str, ...]
+    arm_joints: dict[str, tuple[str, ...]]
+    extra_joints: tuple[str, ...]
+    lower: np.ndarray
+    upper: np.ndarray
+    home: np.ndarray
+    mapping: JointMapping
+
+    @property
+    def dof(self) -> int:
+        return len(self.joint_names)
+
+    @property
+    def unlimited(self) -> tuple[str, ...]:
+        return tuple(n for n, lo in zip(self.joint_names, self.lower) if np.isinf(lo))
+
+    def index(self, joints: str | tuple[str, ...] | list[str]) -> int | np.ndarray:
+        """Position(s) of joint(s) in the configuration vector."""
+        if isinstance(joints, str):
+            return self.joint_names.index(joints)
+        return np.array([self.joint_names.index(j) for j in joints], dtype=int)
+
+    def site_id(self, side: str, site: str) -> int:
+        """MuJoCo id of ``{side}_{site}`` (site in shoulder, elbow, wrist, tcp)."""
+        return self.model.site(f"{side}_{site}").id
+
+    def __repr__(self) -> str:
+        arms = "+".join(str(len(self.arm_joints[s])) for s in SIDES)
+        return (
+            f"Robot(name={self.name!r}, title={self.title!r}, dof={self.dof}, arms={arms}, "
+            f"extra={list(self.extra_joints)}, unlimited={len(self.unlimited)}, "
+            f"mjcf={self.mjcf.name!r})"
+        )
+
+
+def available_robots() -> tuple[str, ...]:
+    """Names of the bundled robots."""
+    return tuple(sorted(p.stem for p in robots_dir().glob("*.toml")))
+
+
+def load_robot(name: str) -> Robot:
+    """Load a bundled robot by name, or a robot toml by path.
+
+    Raises:
+        hlik.errors.RobotError: unknown name, or a description inconsistent with its model.
+    """
+    path = Path(name) if name.endswith(".toml") else robots_dir() / f"{name}.toml"
+    if not path.is_file():
+        known = ", ".join(available_robots())
+        raise RobotError(f"unknown robot {name!r}; choose one of: {known}")
+    try:
+        desc = tomllib.loads(path.read_text(encoding="utf-8"))
+    except tomllib.TOMLDecodeError as e:
+        raise RobotError(f"{path}: invalid TOML: {e}") from None
+    return _build(path, desc)
+
+
+def _build(path: Path, desc: dict) -> Robot:
+    try:
+        mjcf = (path.parent / desc["mjcf"]).resolve()
+        arms = {s: tuple(desc["arms"][s]["joints"]) for s in SIDES}
+    except KeyError as e:
+        raise RobotError(f"{path}: missing key {e}") from None
+    try:
+        model = mujoco.MjModel.from_xml_path(str(mjcf))
+    except ValueError as e:
+        raise RobotError(f"{mjcf}: cannot load MJCF: {e}") from None
+    names = tuple(model.joint(i).name for i in range(model.njnt))
+    if model.nq != model.njnt or np.any(model.jnt_type != mujoco.mjtJoint.mjJNT_HINGE):
+        raise RobotError(f"{mjcf}: robot joints must all be hinges")
+    extra = tuple(desc.get("extra_joints", ()))
+    listed = [j for s in SIDES for j in arms[s]] + list(extra)
+    unknown = [j for j in listed if j not in names]
+    if unknown:
+        raise RobotError(f"{path}: joints not in the model: {', '.join(unknown)}")
+    for side in SIDES:
+        for site in SITES:
+            if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, f"{side}_{site}") < 0:
+                raise RobotError(f"{mjcf}: missing site {side}_{site}")
+    limited = model.jnt_limited.astype(bool)
+    lower = np.where(limited, model.jnt_range[:, 0], -np.inf)
+    upper = np.where(limited, model.jnt_range[:, 1], np.inf)
+    home_table = desc.get("home", {})
+    home = np.array([float(home_table.get(n, 0.0)) for n in names])
+    mapping = JointMapping.from_table(desc.get("mapping", {}))
+    missing = [j for s in SIDES for j in arms[s] if j not in {m.joint for m in mapping.joints}]
+    if missing:
+        raise RobotError(f"{path}: no mapping for arm joint(s): {', '.join(missing)}")
+    return Robot(
+        name=desc.get("name", path.stem),
+        title=desc.get("title", path.stem),
+        mjcf=mjcf,
+        model=model,
+        joint_names=names,
+        arm_joints=arms,
+        extra_joints=extra,
+        lower=lower,
+        upper=upper,
+        home=home,
+        mapping=mapping,
+    )

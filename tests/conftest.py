@@ -1,0 +1,36 @@
+"""Shared fixtures. Recorded motion comes from ../shared/motion_data (override: HLIK_DATA).
+
+In CI (CI=true) a missing data file fails the test; elsewhere the test is skipped with the reason.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+
+DATA = Path(os.environ.get("HLIK_DATA", Path(__file__).resolve().parents[2] / "shared" / "motion_data"))
+
+
+def data_file(relative: str) -> Path:
+    path = DATA / relative
+    if not path.exists():
+        message = f"recorded motion {path} not found (set HLIK_DATA to the motion_data folder)"
+        if os.environ.get("CI", "").lower() == "true":
+            pytest.fail(message)
+        pytest.skip(message)
+    return path
+
+
+def kit_takes() -> list[Path]:
+    folder = data_file("kit_bimanual")
+    takes = sorted(folder.glob("*.xml"))
+    if not takes:
+        data_file("kit_bimanual/<no .xml takes>")
+    return takes
+
+
+@pytest.fixture(scope="session")
+def takes() -> list[Path]:
+    return kit_takes()

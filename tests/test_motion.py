@@ -1,0 +1,134 @@
+"""Reading MMM files and human kinematics, checked against the recorded markers."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from conftest import data_file, kit_takes
+from hlik import load_motion
+from hlik.demo import demo_motion
+from hlik.mmm_format import write_mmm
+from hlik.motion import ARM_JOINTS
+from hlik.paths import demo_motion_path
+
+MIRROR = np.diag([-1.0, 1.0, 1.0])
+
+
+def _midpoint(markers, a, b):
+    return (markers[a] + markers[b]) / 2
+
+
+def test_kit_takes_read(takes):
+    for path in takes:
+        m = load_motion(path)
+        assert m.rate == pytest.approx(10.0)
+        assert m.height == pytest.approx(1.68)
+        assert all(j in m.joint_names for side in ARM_JOINTS.values() for j in side)
+        assert len(m.markers) == 53 and "kitchen_sideboard" in "".join(m.objects)
+        # metres: shoulder markers at standing shoulder height, the root near hip height
+        assert 1.2 < np.median(m.markers["LSHO"][:, 2]) < 1.5
+        assert 0.8 < np.median(m.root_position[:, 2]) < 1.0
+        assert np.allclose(m.root_rotation @ m.root_rotation.transpose(0, 2, 1), np.eye(3), atol=1e-9)
+        fingers = [i for i, n in enumerate(m.joint_names) if "Finger" in n]
+        assert fingers and np.all(np.abs(m.joints[:, fingers]) <= np.pi)  # wrapped
+
+
+@pytest.mark.parametrize("path", kit_takes(), ids=lambda p: p.name.split("_")[0])
+def test_kinematics_match_markers(path):
+    """kinematics.md §8: elbow ≤ 3 cm, wrist ≤ 4.5 cm median to the marker midpoints.
+
+    Evaluated at the pipeline's 100 Hz (splined markers and joints); at the recorded 10 Hz the
+    Transfer take's wrist median is 4.505 cm, the skin-marker forearm being 2 cm shorter.
+    """
+    m = load_motion(path, rate=100.0)
+    k = m.kinematics()
+    mk = m.markers
+    elbow = np.stack([_midpoint(mk, "LAEL", "LAOL"), _midpoint(mk, "RAEL", "RAOL")], 1)
+    wrist = np.stack([_midpoint(mk, "LWPS", "LWTS"), _midpoint(mk, "RWPS", "RWTS")], 1)
+    shoulder = np.stack([mk["LSHO"], mk["RSHO"]], 1)
+    assert np.median(np.linalg.norm(k.elbow - elbow, axis=-1)) <= 0.030
+    assert np.median(np.linalg.norm(k.wrist - wrist, axis=-1)) <= 0.045
+    assert np.median(np.linalg.norm(k.shoulder - shoulder, axis=-1)) <= 0.04
+    # left arm is on the subject's left: the body's x axis points from left to right shoulder
+    right_axis = m.root_rotation[:, :, 0]
+    assert np.all(np.sum((k.shoulder[:, 1] - k.shoulder[:, 0]) * right_axis, -1) > 0.3)
+
+
+def test_tcp_frame_and_segment_lengths(takes):
+    m = load_motion(takes[0])
+    k = m.kinematics()
+    r = k.tcp_rot
+    assert np.allclose(r @ r.transpose(0, 1, 3, 2), np.eye(3), atol=1e-9)
+    assert np.allclose(np.linalg.det(r), 1.0)
+    assert np.allclose(np.linalg.norm(k.elbow - k.shoulder, axis=-1), 0.188 * m.height)
+    assert np.allclose(np.linalg.norm(k.wrist - k.elbow, axis=-1), 0.145 * m.height)
+    # TCP is in the palm: half a hand length along the approach axis past the wrist
+    along = np.sum((k.tcp_pos - k.wrist) * r[..., :, 2], -1)
+    assert np.allclose(along, 0.054 * m.height, atol=1e-9)
+
+
+def test_legacy_walk_reads():
+    m = load_motion(data_file("kit_ml/00001_mmm.xml"))
+    assert m.n_frames == 378 and m.rate == pytest.approx(100.0) and m.height == pytest.approx(1.82)
+    walked = np.linalg.norm(m.root_position[-1, :2] - m.root_position[0, :2])
+    assert 1.0 < walked < 1.8
+    k = m.kinematics()
+    assert np.all(np.isfinite(k.tcp_pos))
+    # arms swing at the sides: wrists stay below the shoulders
+    assert np.all(k.wrist[..., 2] < k.shoulder[..., 2])
+
+
+def test_resample_round_trip(takes):
+    m = load_motion(takes[1])
+    up = m.resample(100.0)
+    assert np.allclose(np.diff(up.times), 0.01)
+    assert up.duration == pytest.approx(m.duration, abs=0.01)
+    # a cubic spline passes through its knots: every 10th frame is a recorded frame
+    assert np.allclose(up.joints[::10], m.joints[: len(up.joints[::10])], atol=1e-9)
+    assert np.allclose(up.root_rotation[::10], m.root_rotation[: len(up.times[::10])], atol=1e-9)
+    assert np.allclose(up.markers["LSHO"][::10], m.markers["LSHO"][: len(up.times[::10])], atol=1e-9)
+    name = next(iter(m.objects))
+    assert up.objects[name].position.shape == (up.n_frames, 3)
+
+
+def test_mirror_is_reflection(takes):
+    m = load_motion(takes[2])
+    mm = m.mirrored()
+    assert np.allclose(mm.mirrored().joints, m.joints)
+    k, km = m.kinematics(), mm.kinematics()
+    for a, b in ((k.wrist, km.wrist), (k.elbow, km.elbow), (k.tcp_pos, km.tcp_pos)):
+        assert np.allclose(b[:, 0], a[:, 1] @ MIRROR, atol=1e-9)
+        assert np.allclose(b[:, 1], a[:, 0] @ MIRROR, atol=1e-9)
+    assert np.allclose(mm.markers["LSHO"], m.markers["RSHO"] @ MIRROR)
+    assert np.allclose(mm.markers["L3"], m.markers["L3"] @ MIRROR)  # lumbar marker, not "left"
+    assert np.allclose(mm.joint("LSy_joint"), -m.joint("RSy_joint"))
+    assert np.allclose(mm.joint("LSx_joint"), m.joint("RSx_joint"))
+
+
+def test_write_read_round_trip(tmp_path, takes):
+    m = load_motion(takes[3])
+    out = tmp_path / "copy.xml"
+    write_mmm(m, out)
+    back = load_motion(out)
+    assert back.joint_names == m.joint_names
+    assert np.allclose(back.times, m.times)
+    assert np.allclose(back.joints, m.joints, atol=1e-7)
+    assert np.allclose(back.root_position, m.root_position, atol=1e-7)
+    assert np.allclose(back.root_rotation, m.root_rotation, atol=1e-7)
+    assert set(back.markers) == set(m.markers) and set(back.objects) == set(m.objects)
+    name = next(iter(m.objects))
+    assert np.allclose(back.objects[name].position, m.objects[name].position, atol=1e-7)
+    assert list(tmp_path.iterdir()) == [out]  # no temporary file left behind
+
+
+def test_bundled_demo_is_the_generated_one():
+    m = load_motion(demo_motion_path())
+    ref = demo_motion()
+    assert m.joint_names == ref.joint_names
+    assert np.allclose(m.joints, ref.joints, atol=1e-7) and np.allclose(m.times, ref.times)
+    k = m.resample(100.0).kinematics()
+    # both hands work in front of the body at some point, and the motion is smooth
+    assert np.max(k.tcp_pos[:, :, 1]) > 0.25
+    jerk = np.diff(m.resample(100.0).joints, 3, axis=0)
+    assert np.max(np.abs(jerk)) < 1e-3
