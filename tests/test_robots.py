@@ -138,3 +138,10 @@ def test_cli_robots_info_calibrate():
     assert out.exit_code == 0 and "demo_pour_wipe" in out.output
     out = runner.invoke(app, ["calibrate", "armar3"])
     assert out.exit_code == 0 and "matches robots/armar3.toml" in out.output
+
+
+def test_top_level_api():
+    import hlik
+
+    assert hlik.load_robot("armar6").title == "ARMAR-6"
+    assert set(hlik.available_robots()) == set(ROBOTS)

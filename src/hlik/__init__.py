@@ -3,6 +3,7 @@
 from hlik.errors import HlikError, MotionFormatError, RobotError
 from hlik.human import HumanKinematics
 from hlik.motion import HumanMotion, ObjectMotion, load_motion
+from hlik.robot import Robot, available_robots, load_robot
 
 __all__ = [
     "HlikError",
@@ -10,7 +11,10 @@ __all__ = [
     "HumanMotion",
     "MotionFormatError",
     "ObjectMotion",
+    "Robot",
     "RobotError",
+    "available_robots",
     "load_motion",
+    "load_robot",
 ]
 __version__ = "0.1.0"
