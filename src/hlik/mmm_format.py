@@ -18,7 +18,7 @@ from defusedxml import DefusedXmlException
 from scipy.spatial.transform import Rotation
 
 from hlik.errors import MotionFormatError
-from hlik.motion import ARM_JOINTS, HumanMotion, ObjectMotion
+from hlik.motion import ARM_JOINTS, HumanMotion, ObjectMotion, _slerp
 
 MM = 1e-3
 
@@ -107,7 +107,7 @@ def _read_v2(path: Path, motions: list[Element]) -> HumanMotion:
         jn = [j.get("name") or "" for j in s.findall("Configuration/Joint")]
         t, q = _read_measurements(path, s, "JointPosition", len(jn))
         names += jn
-        columns.append(_align(path, t, q, times))
+        columns.append(_align(t, q, times))
     joints = np.concatenate(columns, axis=1)
     markers = {}
     for s in (s for s in sensors if s.get("type") == "MoCapMarker"):
@@ -170,7 +170,7 @@ def _finish(path, name, times, names, joints, root_pos, root_rot, height, mass, 
     joints = joints.copy()
     joints[:, fingers] = np.arctan2(np.sin(joints[:, fingers]), np.cos(joints[:, fingers]))
     return HumanMotion(
-        name=path.stem if name is None else name,
+        name=name,
         times=times,
         joint_names=tuple(names),
         joints=joints,
@@ -208,8 +208,8 @@ def _read_object(path: Path, name: str, motion: Element, times: np.ndarray) -> O
         position, rotation = np.full((len(times), 3), np.nan), eye
     else:
         t, pos, rot = _read_pose_sensor(path, pose)
-        position = _align(path, t, pos, times)
-        rotation = _align_rot(t, rot, times)
+        position = _align(t, pos, times)
+        rotation = _align(t, rot, times, _slerp)
     markers = {}
     for s in (s for s in sensors if s.get("type") == "MoCapMarker"):
         markers.update(_read_markers(path, s, times))
@@ -239,7 +239,7 @@ def _read_markers(path: Path, sensor: Element, times: np.ndarray) -> dict[str, n
     if not rows:
         return {}
     ta = _check_times(path, np.asarray(t), "MoCapMarker sensor")
-    data = _align(path, ta, np.asarray(rows).reshape(len(rows), -1) * MM, times)
+    data = _align(ta, np.asarray(rows).reshape(len(rows), -1) * MM, times)
     return {n: data[:, 3 * i : 3 * i + 3] for i, n in enumerate(names)}
 
 
@@ -267,23 +267,17 @@ def _check_times(path: Path, t: np.ndarray, what: str) -> np.ndarray:
     return t
 
 
-def _align(path: Path, t: np.ndarray, y: np.ndarray, times: np.ndarray) -> np.ndarray:
+def _lerp(t: np.ndarray, y: np.ndarray, times: np.ndarray) -> np.ndarray:
+    return np.stack([np.interp(times, t, c) for c in y.T], axis=1)
+
+
+def _align(t: np.ndarray, y: np.ndarray, times: np.ndarray, interpolate=_lerp) -> np.ndarray:
     """Values of ``y(t)`` on ``times``: identical time bases pass through, others interpolate."""
     if len(t) == len(times) and np.allclose(t, times, atol=1e-6):
         return y
     if len(t) == 1:
         return np.repeat(y, len(times), axis=0)
-    return np.stack([np.interp(times, t, c) for c in y.T], axis=1)
-
-
-def _align_rot(t: np.ndarray, rot: np.ndarray, times: np.ndarray) -> np.ndarray:
-    if len(t) == len(times) and np.allclose(t, times, atol=1e-6):
-        return rot
-    if len(t) == 1:
-        return np.repeat(rot, len(times), axis=0)
-    from hlik.motion import _slerp
-
-    return _slerp(t, rot, times)
+    return interpolate(t, y, times)
 
 
 def _rpy_to_matrix(rpy: np.ndarray) -> np.ndarray:
