@@ -1,9 +1,16 @@
-"""hlik: human-like bimanual motion retargeting and human-likeness metrics."""
+"""hlik: human-like bimanual motion retargeting and human-likeness metrics.
 
-from hlik.errors import HlikError, MotionFormatError, RobotError
+Data flow: motion -> human kinematics -> placement and hand targets -> solver -> trajectory ->
+metrics -> recording.
+"""
+
+from hlik.errors import HlikError, MotionFormatError, RobotError, TrajectoryFormatError
 from hlik.human import HumanKinematics
 from hlik.motion import HumanMotion, ObjectMotion, load_motion
+from hlik.recording import write_recording
+from hlik.retarget import retarget
 from hlik.robot import Robot, available_robots, load_robot
+from hlik.trajectory import Trajectory, load_trajectory
 
 __all__ = [
     "HlikError",
@@ -13,8 +20,13 @@ __all__ = [
     "ObjectMotion",
     "Robot",
     "RobotError",
+    "Trajectory",
+    "TrajectoryFormatError",
     "available_robots",
     "load_motion",
     "load_robot",
+    "load_trajectory",
+    "retarget",
+    "write_recording",
 ]
 __version__ = "0.1.0"

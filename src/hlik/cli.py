@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import os
 import sys
+import time
 from pathlib import Path
 from typing import Annotated
 
@@ -30,6 +32,90 @@ MotionArg = Annotated[
 def _fail(err: HlikError) -> None:
     Console(stderr=True).print(f"[red]error:[/red] {err}", highlight=False, soft_wrap=True)
     raise typer.Exit(2)
+
+
+@app.command()
+def run(
+    motion: MotionArg = None,
+    robot: Annotated[str, typer.Option("--robot", "-r", help="Robot name (see `hlik robots`).")] = "armar6",
+    solver: Annotated[str, typer.Option("--solver", "-s", help="Retargeting solver: jm.")] = "jm",
+    out: Annotated[
+        Path | None,
+        typer.Option("--out", "-o", help="Output .rrd (default: recordings/<motion>_<robot>_<solver>.rrd)."),
+    ] = None,
+    rate: Annotated[float, typer.Option(help="Resample the motion to this rate (Hz); 0 keeps it.")] = 100.0,
+    layout: Annotated[
+        str, typer.Option(help="side: robot beside the human; overlay: on the human.")
+    ] = "side",
+) -> None:
+    """Retarget a motion to a robot; write a Rerun recording and the trajectory (.npz) beside it."""
+    from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
+
+    from hlik.motion import load_motion
+    from hlik.recording import LAYOUTS, write_recording
+    from hlik.retarget import retarget
+    from hlik.robot import load_robot
+    from hlik.solvers import SOLVERS
+
+    path = motion or demo_motion_path()
+    try:
+        if solver not in SOLVERS:
+            raise HlikError(f"unknown solver {solver!r}; choose one of: {', '.join(SOLVERS)}")
+        if layout not in LAYOUTS:
+            raise HlikError(f"unknown layout {layout!r}; choose one of: {', '.join(LAYOUTS)}")
+        if rate < 0:
+            raise HlikError(f"--rate must be positive (or 0 to keep the motion's rate), got {rate:g}")
+        r = load_robot(robot)
+        rrd = out or Path("recordings") / f"{path.stem}_{r.name}_{solver}.rrd"
+        _check_writable(rrd, create=out is None)
+        columns = (SpinnerColumn(), TextColumn("{task.description}"), TimeElapsedColumn())
+        with Progress(*columns, console=Console(stderr=True), transient=True) as progress:
+            task = progress.add_task(f"reading {path.name}", total=None)
+            m = load_motion(path, rate=rate or None)
+            progress.update(task, description=f"retargeting {m.n_frames} frames to {r.title} ({solver})")
+            start = time.perf_counter()
+            traj = retarget(m, r, solver)
+            solve_time = time.perf_counter() - start
+            progress.update(task, description=f"writing {rrd}")
+            npz = traj.save(rrd.with_suffix(".npz"))
+            write_recording(rrd, traj, r, layout=layout)
+    except HlikError as e:
+        _fail(e)
+    except OSError as e:
+        _fail(HlikError(f"{e.filename or rrd}: cannot write ({e.strerror or e})"))
+    console.print(_run_summary(path.stem, traj, m, solve_time, rrd, npz))
+
+
+def _check_writable(path: Path, create: bool) -> None:
+    """Fail before solving, not after, when the output cannot be written."""
+    folder = path.parent
+    if create:
+        folder.mkdir(parents=True, exist_ok=True)
+    if not folder.is_dir():
+        raise HlikError(f"{path}: output folder {folder} does not exist")
+    if path.is_dir():
+        raise HlikError(f"{path}: is a folder, expected a .rrd file name")
+    if not os.access(folder, os.W_OK):
+        raise HlikError(f"{path}: output folder {folder} is not writable")
+
+
+def _run_summary(title: str, traj, motion, solve_time: float, rrd: Path, npz: Path) -> Table:
+    from hlik.criteria.functional import position_error, rotation_angle
+
+    fpos = position_error(traj.tcp_pos, traj.targets.pos)
+    fori = rotation_angle(traj.tcp_rot, traj.targets.rot)
+    table = Table(show_header=False, box=None, title=f"{title} -> {traj.robot} ({traj.solver})")
+    table.add_row("frames", f"{traj.n_frames} over {motion.duration:.2f} s at {motion.rate:.1f} Hz")
+    table.add_row("solve time", f"{solve_time:.2f} s ({1e3 * solve_time / traj.n_frames:.3f} ms/frame)")
+    for i, side in enumerate(("left", "right")):
+        table.add_row(
+            f"{side} hand",
+            f"fPOS mean {100 * fpos[:, i].mean():.1f} cm, max {100 * fpos[:, i].max():.1f} cm; "
+            f"fORI mean {np.degrees(fori[:, i].mean()):.1f}°, max {np.degrees(fori[:, i].max()):.1f}°",
+        )
+    table.add_row("recording", f"{rrd}  (open with: rerun {rrd})")
+    table.add_row("trajectory", str(npz))
+    return table
 
 
 @app.command()

@@ -10,7 +10,9 @@ from dataclasses import dataclass
 
 import mujoco
 import numpy as np
+from scipy.spatial.transform import Rotation
 
+from hlik.fk import site_poses
 from hlik.motion import HumanMotion
 from hlik.paths import robots_dir
 
@@ -56,10 +58,7 @@ def qpos_trajectory(model: mujoco.MjModel, motion: HumanMotion) -> np.ndarray:
     """
     qpos = np.zeros((motion.n_frames, model.nq))
     qpos[:, :3] = motion.root_position
-    quat = np.empty((motion.n_frames, 4))
-    for k, rot in enumerate(motion.root_rotation):
-        mujoco.mju_mat2Quat(quat[k], rot.ravel())
-    qpos[:, 3:7] = quat
+    qpos[:, 3:7] = np.roll(Rotation.from_matrix(motion.root_rotation).as_quat(), 1, axis=-1)  # wxyz
     for i, name in enumerate(motion.joint_names):
         jid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name)
         if jid >= 0:
@@ -70,14 +69,7 @@ def qpos_trajectory(model: mujoco.MjModel, motion: HumanMotion) -> np.ndarray:
 def forward_kinematics(motion: HumanMotion) -> HumanKinematics:
     """Joint centres and TCP poses of both arms for every frame of ``motion``."""
     model = human_model(motion.height)
-    data = mujoco.MjData(model)
     names = ("shoulder", "elbow", "wrist", "tcp")
     ids = np.array([[model.site(f"{s}_{n}").id for s in SIDES] for n in names])
-    pos = np.empty((motion.n_frames, 4, 2, 3))
-    rot = np.empty((motion.n_frames, 2, 3, 3))
-    for k, q in enumerate(qpos_trajectory(model, motion)):
-        data.qpos[:] = q
-        mujoco.mj_kinematics(model, data)
-        pos[k] = data.site_xpos[ids]
-        rot[k] = data.site_xmat[ids[3]].reshape(2, 3, 3)
-    return HumanKinematics(pos[:, 0], pos[:, 1], pos[:, 2], pos[:, 3], rot)
+    pos, rot = site_poses(model, qpos_trajectory(model, motion), ids)
+    return HumanKinematics(pos[:, 0], pos[:, 1], pos[:, 2], pos[:, 3], rot[:, 3])

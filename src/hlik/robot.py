@@ -10,6 +10,7 @@ import mujoco
 import numpy as np
 
 from hlik.errors import RobotError
+from hlik.fk import site_poses
 from hlik.mapping import JointMapping
 from hlik.paths import robots_dir
 
@@ -76,6 +77,12 @@ class Robot:
             f"extra={list(self.extra_joints)}, unlimited={len(self.unlimited)}, "
             f"mjcf={self.mjcf.name!r})"
         )
+
+
+def tcp_poses(robot: Robot, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(T, 2, 3) positions and (T, 2, 3, 3) rotations of both TCPs for joint angles (T, n)."""
+    ids = np.array([robot.site_id(s, "tcp") for s in SIDES])
+    return site_poses(robot.model, q, ids)
 
 
 def available_robots() -> tuple[str, ...]:

@@ -1,0 +1,1 @@
+"""Criteria of retargeted motion: functional (tracking) now, human-likeness with issue 4."""

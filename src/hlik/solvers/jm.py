@@ -1,0 +1,29 @@
+"""JM: the naive joint mapping baseline (paper Sec. III-A), blind to the hand targets."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from hlik.errors import MotionFormatError
+from hlik.motion import HumanMotion
+from hlik.robot import Robot
+from hlik.targets import HandTargets
+
+
+def joint_mapping(robot: Robot, motion: HumanMotion, targets: HandTargets | None = None) -> np.ndarray:
+    """Map the MMM joint angles to the robot through its Table I mapping.
+
+    Joints the mapping does not cover (ARMAR-III's hip) stay at home; mapped angles are clipped
+    into the joint limits, as a robot controller would.
+
+    Returns:
+        (T, n) joint angles in ``robot.joint_names`` order.
+    """
+    missing = [j for j in robot.mapping.mmm_joints if j not in motion.joint_names]
+    if missing:
+        raise MotionFormatError(motion.source, f"motion lacks MMM joint(s) {', '.join(missing)}")
+    mapped = robot.mapping.apply(motion.joint_names, motion.joints)
+    q = np.tile(robot.home, (motion.n_frames, 1))
+    for name, angles in mapped.items():
+        q[:, robot.index(name)] = angles
+    return np.clip(q, robot.lower, robot.upper)

@@ -1,0 +1,153 @@
+"""Trajectory .npz round trip, bad files, and the pipeline's geometric properties."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from hlik import load_motion, load_robot
+from hlik.criteria.functional import position_error, rotation_angle
+from hlik.demo import demo_motion
+from hlik.errors import TrajectoryFormatError
+from hlik.fk import site_poses
+from hlik.retarget import retarget
+from hlik.robot import SIDES, tcp_poses
+from hlik.trajectory import load_trajectory
+
+ROBOTS = ("armar3", "armar6", "dual_panda")
+
+
+@pytest.fixture(scope="module")
+def demo():
+    return demo_motion().crop(0.0, 3.0).resample(50.0)
+
+
+def test_round_trip_keeps_every_array(tmp_path, takes):
+    motion = load_motion(takes[0], rate=20.0)
+    traj = retarget(motion, load_robot("armar3"))
+    back = load_trajectory(traj.save(tmp_path / "t.npz"))
+    assert (back.robot, back.solver, back.joint_names) == (traj.robot, traj.solver, traj.joint_names)
+    for name in ("times", "q", "tcp_pos", "tcp_rot"):
+        np.testing.assert_array_equal(getattr(back, name), getattr(traj, name))
+    np.testing.assert_array_equal(back.targets.pos, traj.targets.pos)
+    np.testing.assert_array_equal(back.targets.rot, traj.targets.rot)
+    np.testing.assert_array_equal(back.placement.matrix, traj.placement.matrix)
+    ref, ref0 = back.reference, traj.reference
+    assert ref.joint_names == ref0.joint_names and ref.height == ref0.height and ref.source == ref0.source
+    np.testing.assert_array_equal(ref.joints, ref0.joints)
+    assert set(ref.objects) == set(ref0.objects) and ref.objects
+    for name, obj in ref0.objects.items():
+        np.testing.assert_array_equal(ref.objects[name].rotation, obj.rotation)
+        assert set(ref.objects[name].markers) == set(obj.markers)
+    # the stored reference reproduces the human; the stored TCP poses are the FK of the stored q
+    np.testing.assert_allclose(back.reference.kinematics().tcp_pos, motion.kinematics().tcp_pos)
+    np.testing.assert_allclose(tcp_poses(load_robot("armar3"), back.q)[0], back.tcp_pos)
+
+
+def test_save_is_atomic_and_leaves_no_temporary(tmp_path, demo):
+    traj = retarget(demo, load_robot("dual_panda"))
+    traj.save(tmp_path / "t.npz")
+    assert [p.name for p in tmp_path.iterdir()] == ["t.npz"]
+    with pytest.raises(OSError):
+        traj.save(tmp_path / "missing" / "t.npz")
+    assert [p.name for p in tmp_path.iterdir()] == ["t.npz"]
+
+
+@pytest.mark.parametrize(
+    "content,pattern",
+    [
+        (b"not a zip", "not a readable .npz"),
+        (None, "not an hlik trajectory"),
+    ],
+)
+def test_bad_files_name_the_file(tmp_path, content, pattern):
+    path = tmp_path / "bad.npz"
+    if content is None:
+        np.savez(path, q=np.zeros((2, 3)))
+    else:
+        path.write_bytes(content)
+    with pytest.raises(TrajectoryFormatError, match=pattern) as err:
+        load_trajectory(path)
+    assert str(path) in str(err.value) and "\n" not in str(err.value)
+    with pytest.raises(TrajectoryFormatError, match="no such file"):
+        load_trajectory(tmp_path / "missing.npz")
+
+
+def test_inconsistent_shapes_are_refused(tmp_path, demo):
+    path = retarget(demo, load_robot("armar6")).save(tmp_path / "t.npz")
+    with np.load(path) as z:
+        arrays = dict(z)
+    arrays["q"] = arrays["q"][:, :-1]
+    np.savez(path, **arrays)
+    with pytest.raises(TrajectoryFormatError, match=r"q has shape .* expected"):
+        load_trajectory(path)
+
+
+@pytest.mark.parametrize("robot", ROBOTS)
+def test_jm_on_every_take_is_finite_and_within_limits(robot, takes):
+    r = load_robot(robot)
+    for take in takes:
+        traj = retarget(load_motion(take, rate=25.0), r, "jm")
+        assert np.all(np.isfinite(traj.q)), take.name
+        assert np.all(traj.q >= r.lower - 1e-12) and np.all(traj.q <= r.upper + 1e-12), take.name
+        extra = r.index(r.extra_joints) if r.extra_joints else np.array([], int)
+        np.testing.assert_array_equal(
+            traj.q[:, extra], np.broadcast_to(r.home[extra], (traj.n_frames, len(extra)))
+        )
+
+
+@pytest.mark.parametrize("robot", ROBOTS)
+def test_jm_follows_the_mapping_where_limits_allow(robot, demo):
+    r = load_robot(robot)
+    q = retarget(demo, r).q
+    mapped = r.mapping.apply(demo.joint_names, demo.joints)
+    for name, angles in mapped.items():
+        inside = (angles > r.lower[r.index(name)]) & (angles < r.upper[r.index(name)])
+        np.testing.assert_allclose(q[inside, r.index(name)], angles[inside])
+
+
+@pytest.mark.parametrize("robot", ROBOTS)
+def test_placement_matches_shoulder_midpoints_and_heading(robot, takes):
+    r = load_robot(robot)
+    motion = load_motion(takes[1])
+    traj = retarget(motion, r)
+    human = motion.kinematics()
+    ids = np.array([r.site_id(s, "shoulder") for s in SIDES])
+    shoulders, _ = site_poses(r.model, r.home[None], ids)
+    world = traj.placement.to_world(shoulders[0])
+    np.testing.assert_allclose(world.mean(0), human.shoulder[0].mean(0), atol=1e-9)
+    lateral = lambda p: (p[1] - p[0])[:2] / np.linalg.norm((p[1] - p[0])[:2])  # noqa: E731
+    np.testing.assert_allclose(lateral(world), lateral(human.shoulder[0]), atol=1e-9)
+    np.testing.assert_allclose(traj.placement.rotation[:, 2], [0, 0, 1], atol=1e-12)  # stays upright
+
+
+def test_targets_do_not_depend_on_where_the_human_stands(demo):
+    """Turning and moving the whole recording leaves targets and errors in the robot frame unchanged."""
+    turn = Rotation.from_euler("z", 1.1).as_matrix()
+    shift = np.array([2.0, -3.0, 0.1])
+    moved = replace(
+        demo,
+        root_position=demo.root_position @ turn.T + shift,
+        root_rotation=turn @ demo.root_rotation,
+    )
+    r = load_robot("armar3")
+    a, b = retarget(demo, r), retarget(moved, r)
+    np.testing.assert_allclose(b.targets.pos, a.targets.pos, atol=1e-9)
+    np.testing.assert_allclose(b.targets.rot, a.targets.rot, atol=1e-9)
+    np.testing.assert_allclose(
+        b.placement.to_world(b.tcp_pos), a.placement.to_world(a.tcp_pos) @ turn.T + shift
+    )
+
+
+def test_tracking_errors_are_metrics():
+    rng = np.random.default_rng(3)
+    ra, rb = Rotation.random(50, random_state=rng), Rotation.random(50, random_state=rng)
+    a, b = ra.as_matrix(), rb.as_matrix()
+    np.testing.assert_allclose(rotation_angle(a, b), (ra.inv() * rb).magnitude(), atol=1e-7)
+    np.testing.assert_allclose(rotation_angle(a, b), rotation_angle(b, a))
+    np.testing.assert_allclose(rotation_angle(a, a), 0.0, atol=2e-8)
+    p, t = rng.normal(size=(50, 3)), rng.normal(size=(50, 3))
+    np.testing.assert_allclose(position_error(p, t), np.sqrt(((p - t) ** 2).sum(1)))
