@@ -34,3 +34,11 @@ def kit_takes() -> list[Path]:
 @pytest.fixture(scope="session")
 def takes() -> list[Path]:
     return kit_takes()
+
+
+@pytest.fixture(autouse=True, scope="session")
+def _private_cache(tmp_path_factory):
+    """Learned criteria are cached in a per-session folder, never in the user's cache."""
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("HLIK_CACHE", str(tmp_path_factory.mktemp("hlik-cache")))
+        yield

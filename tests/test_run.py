@@ -90,6 +90,22 @@ def test_recording_reads_back(default_run):
     batches = temporal["/plots/fPOS/left"]
     order = np.argsort(_column(batches, "frame"))
     np.testing.assert_allclose(_column(batches, "time")[order], traj.times, atol=1e-9)
+    for name in (
+        "EEA",
+        "SOA_x",
+        "SOA_q",
+        "HJL",
+        "SYN",
+        "MIS",
+        "MJE",
+        "HJA_r",
+        "SYN_r",
+        "EEA_r",
+        "MAN_r",
+        "fPOS",
+    ):
+        values = _column(temporal[f"/plots/metrics/{name}"], "Scalars:scalars")
+        assert len(values) == traj.n_frames and np.all((values >= 0) & (values <= 1)), name
     assert RrdReader(rrd).recordings()[0].application_id == "hlik"
     assert len(RrdReader(rrd).blueprints()) == 1
 

@@ -28,6 +28,16 @@ MotionArg = Annotated[
     Path | None, typer.Argument(help="MMM motion file (default: the bundled demo).", show_default=False)
 ]
 
+CorpusOpt = Annotated[
+    Path | None,
+    typer.Option(
+        help="Folder of MMM motions to learn synergies and the swivel regressor from (default: demo)."
+    ),
+]
+ScenarioOpt = Annotated[
+    str, typer.Option(help="Functional score: pose (hand poses) or relative (relative pose of the hands).")
+]
+
 
 def _fail(err: HlikError) -> None:
     Console(stderr=True).print(f"[red]error:[/red] {err}", highlight=False, soft_wrap=True)
@@ -47,10 +57,14 @@ def run(
     layout: Annotated[
         str, typer.Option(help="side: robot beside the human; overlay: on the human.")
     ] = "side",
+    corpus: CorpusOpt = None,
+    scenario: ScenarioOpt = "pose",
 ) -> None:
     """Retarget a motion to a robot; write a Rerun recording and the trajectory (.npz) beside it."""
     from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
 
+    from hlik.learned import learn
+    from hlik.metrics import evaluate as evaluate_trajectory
     from hlik.motion import load_motion
     from hlik.recording import LAYOUTS, write_recording
     from hlik.retarget import retarget
@@ -63,6 +77,7 @@ def run(
             raise HlikError(f"unknown solver {solver!r}; choose one of: {', '.join(SOLVERS)}")
         if layout not in LAYOUTS:
             raise HlikError(f"unknown layout {layout!r}; choose one of: {', '.join(LAYOUTS)}")
+        _check_scenario(scenario)
         if rate < 0:
             raise HlikError(f"--rate must be positive (or 0 to keep the motion's rate), got {rate:g}")
         r = load_robot(robot)
@@ -76,14 +91,20 @@ def run(
             start = time.perf_counter()
             traj = retarget(m, r, solver)
             solve_time = time.perf_counter() - start
+            progress.update(task, description="evaluating the criteria")
+            ev = evaluate_trajectory(traj, r, learn(r, corpus), scenario=scenario)
             progress.update(task, description=f"writing {rrd}")
             npz = traj.save(rrd.with_suffix(".npz"))
-            write_recording(rrd, traj, r, layout=layout)
+            write_recording(rrd, traj, r, layout=layout, metrics=ev.curves())
     except HlikError as e:
         _fail(e)
     except OSError as e:
         _fail(HlikError(f"{e.filename or rrd}: cannot write ({e.strerror or e})"))
     console.print(_run_summary(path.stem, traj, m, solve_time, rrd, npz))
+    console.print(
+        f"human likeness m_hl = {ev.m_hl:.3f}, functional m_f = {ev.m_f:.3f} ({scenario}), "
+        f"m_hl,f = {ev.m_hl_f:.3f}   (details: hlik evaluate {npz})"
+    )
 
 
 def _check_writable(path: Path, create: bool) -> None:
@@ -116,6 +137,78 @@ def _run_summary(title: str, traj, motion, solve_time: float, rrd: Path, npz: Pa
     table.add_row("recording", f"{rrd}  (open with: rerun {rrd})")
     table.add_row("trajectory", str(npz))
     return table
+
+
+@app.command()
+def evaluate(
+    trajectory: Annotated[Path, typer.Argument(help="Trajectory .npz written by `hlik run`.")],
+    json_out: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
+    corpus: CorpusOpt = None,
+    scenario: ScenarioOpt = "pose",
+) -> None:
+    """Human-likeness criteria h_i and scores m_i, m_hl, m_f and m_hl,f of a trajectory."""
+    import json
+
+    from hlik.criteria.unified import CRITERIA, FUNCTIONAL_X0, X0
+    from hlik.learned import learn
+    from hlik.metrics import evaluate as evaluate_trajectory
+    from hlik.robot import load_robot
+    from hlik.trajectory import load_trajectory
+
+    try:
+        _check_scenario(scenario)
+        traj = load_trajectory(trajectory)
+        r = load_robot(traj.robot)
+        ev = evaluate_trajectory(traj, r, learn(r, corpus), scenario=scenario)
+    except HlikError as e:
+        _fail(e)
+    if json_out:
+        sys.stdout.write(json.dumps(ev.to_json(), indent=2) + "\n")
+        return
+    x0 = {**X0, **FUNCTIONAL_X0[scenario]}
+    table = Table("criterion", "mean h", "x0", "m", title=f"{trajectory.name}: {traj.robot}, {traj.solver}")
+    for k in (*CRITERIA, *FUNCTIONAL_X0[scenario]):
+        table.add_row(k, f"{ev.h[k].mean():.4g}", f"{x0[k]:g}", f"{ev.m[k]:.3f}")
+    console.print(table)
+    console.print(f"m_hl = {ev.m_hl:.3f}   m_f ({scenario}) = {ev.m_f:.3f}   m_hl,f = {ev.m_hl_f:.3f}")
+
+
+@app.command()
+def learn(
+    robots: Annotated[list[str] | None, typer.Argument(help="Robot names (default: all).")] = None,
+    corpus: CorpusOpt = None,
+) -> None:
+    """Fit (or load from the cache) synergies, the swivel regressor and lambda_R; print what was learned."""
+    from hlik.learned import cache_dir
+    from hlik.learned import learn as learn_robot
+    from hlik.robot import available_robots, load_robot
+
+    paper = {"armar3": 7.25, "armar6": 8.76, "dual_panda": 4.7}
+    table = Table("robot", "corpus", "PCA var. (5)", "1st-order var. (5)", "Psi rms", "lambda_R", "paper")
+    try:
+        for name in robots or available_robots():
+            r = load_robot(name)
+            lrn = learn_robot(r, corpus)
+            table.add_row(
+                r.name,
+                f"{len(lrn.corpus)} files",
+                f"{100 * lrn.synergies.explained.sum():.1f} %",
+                f"{100 * lrn.synergies.vel_explained.sum():.1f} %",
+                f"{np.degrees(lrn.swivel_rms):.1f}°",
+                f"{lrn.scale:.2f}",
+                f"{paper.get(r.name, float('nan')):g}",
+            )
+    except HlikError as e:
+        _fail(e)
+    console.print(table)
+    console.print(f"cache: {cache_dir()}")
+
+
+def _check_scenario(scenario: str) -> None:
+    from hlik.criteria.unified import FUNCTIONAL_X0
+
+    if scenario not in FUNCTIONAL_X0:
+        raise HlikError(f"unknown scenario {scenario!r}; choose one of: {', '.join(FUNCTIONAL_X0)}")
 
 
 @app.command()

@@ -11,6 +11,7 @@ Entity tree::
     /world/robot/tcp_paths          robot TCP paths; /world/robot/tcp/<side> the current TCP frame
     /plots/joints/<joint>           joint angles, rad
     /plots/fPOS/<side>, /plots/fORI/<side>   tracking errors, m and rad
+    /plots/metrics/<criterion>      per-frame scores f_x0(h(t)) of the criteria, in [0, 1]
 
 Timelines: ``frame`` (index) and ``time`` (seconds). Everything time-varying goes through
 ``send_columns``; log time is disabled so the same input gives the same file.
@@ -50,7 +51,7 @@ def write_recording(
     trajectory: Trajectory,
     robot: Robot,
     layout: str = "side",
-    extra_curves: Mapping[str, np.ndarray] | None = None,
+    metrics: Mapping[str, np.ndarray] | None = None,
 ) -> Path:
     """Write ``trajectory`` as a Rerun ``.rrd`` file, atomically.
 
@@ -59,7 +60,8 @@ def write_recording(
         trajectory: The retargeted motion.
         robot: The robot it was retargeted to (for its geometry).
         layout: ``"side"`` (robot beside the human) or ``"overlay"`` (robot placed on the human).
-        extra_curves: Entity path under ``/plots`` -> (T,) values, logged with the other curves.
+        metrics: Criterion name -> (T,) per-frame score f_x0(h(t)), logged under ``/plots/metrics``
+            (see :meth:`hlik.metrics.Evaluation.curves`).
     """
     if layout not in LAYOUTS:
         raise ValueError(f"layout must be one of {LAYOUTS}, got {layout!r}")
@@ -72,7 +74,7 @@ def write_recording(
     try:
         rec.set_log_time_enabled(False)
         rec.save(tmp, default_blueprint=blueprint())
-        _log(rec, trajectory, robot, layout, extra_curves or {})
+        _log(rec, trajectory, robot, layout, metrics or {})
         rec.disconnect()  # writes the footer; the file is complete only now
         os.chmod(tmp, 0o644)
         os.replace(tmp, path)
@@ -92,6 +94,7 @@ def blueprint() -> rrb.Blueprint:
                 rrb.TimeSeriesView(origin="/plots/joints", name="joint angles (rad)"),
                 rrb.TimeSeriesView(origin="/plots/fPOS", name="fPOS: TCP position error (m)"),
                 rrb.TimeSeriesView(origin="/plots/fORI", name="fORI: TCP orientation error (rad)"),
+                rrb.TimeSeriesView(origin="/plots/metrics", name="human-likeness scores f(h(t)), 1 = best"),
             ),
             column_shares=[3, 2],
         ),
@@ -99,7 +102,7 @@ def blueprint() -> rrb.Blueprint:
     )
 
 
-def _log(rec, traj: Trajectory, robot: Robot, layout: str, extra_curves: Mapping[str, np.ndarray]) -> None:
+def _log(rec, traj: Trajectory, robot: Robot, layout: str, metrics: Mapping[str, np.ndarray]) -> None:
     index = _index(np.arange(traj.n_frames), traj.times)
     rec.log("/world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
 
@@ -132,8 +135,8 @@ def _log(rec, traj: Trajectory, robot: Robot, layout: str, extra_curves: Mapping
     for i, side in enumerate(SIDES):
         _log_curve(rec, f"/plots/fPOS/{side}", fpos[:, i], index, f"fPOS {side}", SIDE_COLORS[side])
         _log_curve(rec, f"/plots/fORI/{side}", fori[:, i], index, f"fORI {side}", SIDE_COLORS[side])
-    for entity, values in extra_curves.items():
-        _log_curve(rec, f"/plots/{entity}", np.asarray(values, dtype=float), index, entity.rsplit("/", 1)[-1])
+    for name, values in metrics.items():
+        _log_curve(rec, f"/plots/metrics/{_entity(name)}", np.asarray(values, dtype=float), index, name)
 
 
 def _display_placement(placement: Placement, layout: str) -> Placement:

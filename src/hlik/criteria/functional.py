@@ -24,3 +24,27 @@ def rotation_angle(rot_a: np.ndarray, rot_b: np.ndarray) -> np.ndarray:
     )
     cos = (np.trace(rel, axis1=-2, axis2=-1) - 1.0) / 2.0
     return np.arctan2(np.linalg.norm(axis, axis=-1) / 2.0, cos)
+
+
+def relative_errors(
+    tcp_pos: np.ndarray, tcp_rot: np.ndarray, target_pos: np.ndarray, target_rot: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """fPOS^off and fORI^off (paper Eqs. 3-4): how far the right hand is from where the target's
+    relative pose of the hands puts it, seen from the robot's left hand.
+
+    Args:
+        tcp_pos, target_pos: (..., 2, 3) robot and target TCP positions (0 = left, 1 = right).
+        tcp_rot, target_rot: (..., 2, 3, 3) orientations.
+
+    Returns:
+        (...,) position offsets in metres and (...,) orientation offsets in radians.
+    """
+    rel_rot = np.swapaxes(target_rot[..., 0, :, :], -1, -2) @ target_rot[..., 1, :, :]
+    rel_pos = np.einsum(
+        "...ji,...j->...i", target_rot[..., 0, :, :], target_pos[..., 1, :] - target_pos[..., 0, :]
+    )
+    right = tcp_pos[..., 0, :] + np.einsum("...ij,...j->...i", tcp_rot[..., 0, :, :], rel_pos)
+    return (
+        position_error(right, tcp_pos[..., 1, :]),
+        rotation_angle(tcp_rot[..., 0, :, :] @ rel_rot, tcp_rot[..., 1, :, :]),
+    )

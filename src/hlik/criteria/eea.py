@@ -1,0 +1,285 @@
+"""EEA and EEA^r: the elbow elevation (swivel) angle Ψ of an arm and its human-like prediction.
+
+Ψ (formulas.md §1.1) is the rotation of the elbow about the shoulder -> wrist axis, measured from the
+vertical plane through shoulder and wrist: 0 = elbow straight above the axis, π/2 = lateral
+(outward, for both arms), π = straight below. It is computed in the arm frame of formulas.md §0
+(x towards the arm's side, y forward, z up); inputs are in a frame with x right, y forward, z up
+(the robot base frame, or the body frame of the MMM subject), so the left arm is mirrored
+(x -> -x), which amounts to ``Ψ_left = -Ψ_raw mod 2π``.
+
+Ψ is undefined when the arm is stretched (the elbow lies on the shoulder -> wrist axis) or when
+that axis is vertical; :func:`swivel_angle` returns NaN there and callers reuse the last valid
+value (:func:`forward_fill`). The cost of a NaN residual is NaN.
+
+Ψ_human (formulas.md §1.2) is Zanchettin's regression on the 6D hand pose, made linear in its
+coefficients (:class:`SwivelPredictor`). Decisions: the hand orientation angles (θ, φ, ψ) are
+``Rotation.from_matrix(R_arm).as_euler("xyz")`` (extrinsic roll-pitch-yaw) of the TCP orientation
+in the arm frame; the published Euler convention is unknown, which is one reason to refit the
+coefficients on MMM data (:meth:`SwivelPredictor.fit`) instead of using the printed ones. The left
+TCP orientation is mirrored as ``R_arm = D R diag(1, -1, 1)`` with ``D = diag(-1, 1, 1)`` (that is
+``D R D Rz(π)``), so that mirror-symmetric hands, whose TCP frames both follow "z = approach,
+x = palm normal, y = z × x", get identical features.
+
+h_EEA (formulas.md §1.3) is ``d_θ(Ψ_robot, Ψ_human) / π`` averaged over both arms; the QP residual
+is the signed, wrapped version of it (formulas.md §9).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from hlik.criteria.angles import wrap
+from hlik.criteria.state import RobotState
+
+TWO_PI = 2.0 * np.pi
+_SINGULAR = 1e-6  # relative size below which the swivel angle is undefined
+_UP = np.array([0.0, 0.0, 1.0])
+_MIRROR = np.array([-1.0, 1.0, 1.0])  # x -> -x
+_SIDE_SIGN = np.array([-1.0, 1.0])  # left Ψ = -Ψ_raw, right Ψ = Ψ_raw
+
+# The printed Zanchettin coefficients (RAM 2013, Eq. 3), in the terms they were printed in.
+_PUBLISHED = {
+    "const": 1.39,
+    "theta": (-0.88, 0.30),  # -0.88 cos(θ + 0.30)
+    "theta_phi": (-0.49, 2.98),  # -0.49 cos(θ + φ + 2.98)
+    "atan_zy": 0.21,
+    "sin_psi": 0.64,
+    "atan_xy": 0.50,
+    "psi_theta_phi": 0.22,
+    "phi": (-0.47, 0.60),  # -0.47 cos(φ + 0.60)
+    "psi_theta": 0.40,
+}
+
+FEATURES = (
+    "1",
+    "cos θ",
+    "sin θ",
+    "cos(θ+φ)",
+    "sin(θ+φ)",
+    "atan2(z,y)",
+    "sin ψ",
+    "atan2(x,y)",
+    "cos(ψ+θ+φ)",
+    "cos φ",
+    "sin φ",
+    "cos(ψ+θ)",
+)
+
+
+def _unit(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    norm = np.linalg.norm(v, axis=-1, keepdims=True)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return v / norm, norm[..., 0]
+
+
+def _swivel_parts(shoulder: np.ndarray, elbow: np.ndarray, wrist: np.ndarray):
+    """Raw (unmirrored) Ψ and everything its gradient needs; arrays (..., 2[, 3])."""
+    a = np.asarray(wrist, float) - np.asarray(shoulder, float)
+    b = np.asarray(elbow, float) - np.asarray(shoulder, float)
+    n, a_norm = _unit(a)
+    c = n @ _UP  # cos of the axis' angle to the vertical
+    r, sigma = _unit(_UP - c[..., None] * n)
+    t = np.cross(n, r)
+    x = np.sum(b * r, axis=-1)
+    y = np.sum(b * t, axis=-1)
+    z = np.sum(b * n, axis=-1)
+    eps2 = x**2 + y**2  # squared distance of the elbow from the shoulder -> wrist axis
+    scale = a_norm + np.linalg.norm(b, axis=-1)
+    singular = (sigma < _SINGULAR) | (np.sqrt(eps2) < _SINGULAR * scale) | ~(scale > 0)
+    psi_raw = np.where(singular, np.nan, np.arctan2(y, x))
+    return psi_raw, singular, n, r, t, x, y, z, eps2, c, sigma, a_norm
+
+
+def swivel_angle(shoulder: np.ndarray, elbow: np.ndarray, wrist: np.ndarray) -> np.ndarray:
+    """Ψ (..., 2) in [0, 2π) from (..., 2, 3) joint centres (arm 0 = left, mirrored); NaN if singular."""
+    psi_raw = _swivel_parts(shoulder, elbow, wrist)[0]
+    return (_SIDE_SIGN * psi_raw) % TWO_PI
+
+
+def swivel_gradient(
+    shoulder: np.ndarray, elbow: np.ndarray, wrist: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Analytic dΨ/dshoulder, dΨ/delbow, dΨ/dwrist, each (..., 2, 3); NaN where Ψ is singular.
+
+    With a = w - s, b = e - s, the frame (r, t = n × r, n) and b = X r + Y t + Z n, Ψ_raw =
+    atan2(Y, X); then dΨ/db = (X t - Y r) / (X² + Y²) and, as n turns with a,
+    dΨ/da = ((n·ẑ)/‖ẑ - (n·ẑ) n‖ t + Z (Y r - X t) / (X² + Y²)) / ‖a‖.
+    """
+    _, singular, n, r, t, x, y, z, eps2, c, sigma, a_norm = _swivel_parts(shoulder, elbow, wrist)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        g_b = (x[..., None] * t - y[..., None] * r) / eps2[..., None]
+        g_a = (c / sigma)[..., None] * t + z[..., None] * (y[..., None] * r - x[..., None] * t) / eps2[
+            ..., None
+        ]
+        g_a = g_a / a_norm[..., None]
+    sign = np.where(singular, np.nan, _SIDE_SIGN)[..., None]
+    g_a = sign * g_a
+    g_b = sign * g_b
+    return -g_a - g_b, g_b, g_a
+
+
+def swivel_jacobian(state: RobotState, cap: float = 20.0) -> np.ndarray:
+    """dΨ/dq (F, 2, n) through the shoulder, elbow and wrist position Jacobians of ``state``.
+
+    Each arm's row is scaled down to norm ``cap`` (rad/rad) if it is longer: the gradient grows
+    without bound near the singularities (the paper caps it too). Rows where Ψ is singular are 0.
+    """
+    if state.jac is None:
+        raise ValueError("swivel_jacobian needs a RobotState with Jacobians (jacobians=True)")
+    grads = swivel_gradient(state.shoulder, state.elbow, state.wrist)
+    jac = sum(np.einsum("fak,fakn->fan", g, state.jac[:, :, i, :3, :]) for i, g in enumerate(grads))
+    jac = np.nan_to_num(jac, nan=0.0, posinf=0.0, neginf=0.0)
+    norm = np.linalg.norm(jac, axis=-1, keepdims=True)
+    return jac * np.minimum(1.0, cap / np.maximum(norm, 1e-300))
+
+
+def forward_fill(psi: np.ndarray) -> np.ndarray:
+    """``psi`` (F, ...) with every NaN replaced by the last valid value along axis 0.
+
+    Leading NaNs take the first valid value; columns without any valid value stay NaN.
+    """
+    psi = np.array(psi, dtype=float)
+    flat = psi.reshape(len(psi), -1)
+    for col in flat.T:
+        valid = np.flatnonzero(~np.isnan(col))
+        if valid.size == 0 or valid.size == len(col):
+            continue
+        src = np.maximum.accumulate(np.where(np.isnan(col), 0, np.arange(len(col))))
+        src[: valid[0]] = valid[0]
+        col[:] = col[src]
+    return flat.reshape(psi.shape)
+
+
+# --- the human-like prediction Ψ_human -------------------------------------------------------
+
+
+def _arm_frame(shoulder: np.ndarray, tcp_pos: np.ndarray, tcp_rot: np.ndarray):
+    """Hand position relative to the shoulder (..., 2, 3) and orientation (..., 2, 3, 3), arm frame."""
+    p = np.asarray(tcp_pos, float) - np.asarray(shoulder, float)
+    rot = np.array(tcp_rot, dtype=float)
+    p = p * np.stack([_MIRROR, np.ones(3)])  # left arm: x -> -x
+    # Left arm: reflect the axes (D R) and restore y = z × x of the TCP frame convention
+    # (z approach, x palm normal; robots/README.md), i.e. D R D Rz(π). Plain D R D would leave a
+    # symmetric left hand rotated by π about its approach axis relative to the right one.
+    rot[..., 0, :, :] = np.diag(_MIRROR) @ rot[..., 0, :, :] @ np.diag([1.0, -1.0, 1.0])
+    return p, rot
+
+
+@dataclass(frozen=True, eq=False)
+class SwivelPredictor:
+    """Ψ_human = coef · features(hand pose), Zanchettin's regressor structure (formulas.md §1.2).
+
+    Attributes:
+        coef: (12,) coefficients of :data:`FEATURES`.
+    """
+
+    coef: np.ndarray
+
+    @staticmethod
+    def features(shoulder: np.ndarray, tcp_pos: np.ndarray, tcp_rot: np.ndarray) -> np.ndarray:
+        """(..., 2, 12) regressors from (..., 2, 3) shoulder and TCP positions, (..., 2, 3, 3) TCP rotations.
+
+        Inputs are in a frame with x right, y forward, z up; the left arm is mirrored into its arm
+        frame. (x, y, z) is the TCP relative to the shoulder; (θ, φ, ψ) are the extrinsic "xyz"
+        Euler angles of the TCP orientation.
+        """
+        p, rot = _arm_frame(shoulder, tcp_pos, tcp_rot)
+        shape = rot.shape[:-2]
+        eul = Rotation.from_matrix(rot.reshape(-1, 3, 3)).as_euler("xyz").reshape(*shape, 3)
+        th, ph, ps = eul[..., 0], eul[..., 1], eul[..., 2]
+        x, y, z = p[..., 0], p[..., 1], p[..., 2]
+        cols = [
+            np.ones_like(th),
+            np.cos(th),
+            np.sin(th),
+            np.cos(th + ph),
+            np.sin(th + ph),
+            np.arctan2(z, y),
+            np.sin(ps),
+            np.arctan2(x, y),
+            np.cos(ps + th + ph),
+            np.cos(ph),
+            np.sin(ph),
+            np.cos(ps + th),
+        ]
+        return np.stack(cols, axis=-1)
+
+    def predict(self, shoulder: np.ndarray, tcp_pos: np.ndarray, tcp_rot: np.ndarray) -> np.ndarray:
+        """Ψ_human (..., 2) in [0, 2π)."""
+        return (self.features(shoulder, tcp_pos, tcp_rot) @ self.coef) % TWO_PI
+
+    @classmethod
+    def published(cls) -> SwivelPredictor:
+        """The printed Zanchettin coefficients, with cos(a + c) = cos c cos a - sin c sin a expanded."""
+        p = _PUBLISHED
+
+        def shifted(key: str) -> tuple[float, float]:
+            k, c = p[key]
+            return k * np.cos(c), -k * np.sin(c)
+
+        coef = [
+            p["const"],
+            *shifted("theta"),
+            *shifted("theta_phi"),
+            p["atan_zy"],
+            p["sin_psi"],
+            p["atan_xy"],
+            p["psi_theta_phi"],
+            *shifted("phi"),
+            p["psi_theta"],
+        ]
+        return cls(np.array(coef))
+
+    @classmethod
+    def fit(
+        cls,
+        shoulder: np.ndarray,
+        elbow: np.ndarray,
+        wrist: np.ndarray,
+        tcp_pos: np.ndarray,
+        tcp_rot: np.ndarray,
+    ) -> tuple[SwivelPredictor, float]:
+        """Least-squares fit of the 12 coefficients to the swivel angles of human data.
+
+        Args: (T, 2, 3) joint centres and TCP positions, (T, 2, 3, 3) TCP rotations (both arms
+        pooled; frame as in :meth:`features`).
+
+        Returns:
+            The predictor and the RMS of its wrapped prediction error in rad.
+        """
+        psi = swivel_angle(shoulder, elbow, wrist).ravel()
+        feats = cls.features(shoulder, tcp_pos, tcp_rot).reshape(-1, len(FEATURES))
+        keep = np.isfinite(psi) & np.all(np.isfinite(feats), axis=-1)
+        if not np.any(keep):
+            raise ValueError("no frame with a defined swivel angle to fit")
+        coef = np.linalg.lstsq(feats[keep], psi[keep], rcond=None)[0]
+        err = wrap(feats[keep] @ coef - psi[keep])
+        return cls(coef), float(np.sqrt(np.mean(err**2)))
+
+
+# --- the criterion ---------------------------------------------------------------------------
+
+
+def eea_residual(psi: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """Signed normalised EEA residual (..., 2): wrap(Ψ - target) / π, in [-1, 1)."""
+    return wrap(np.asarray(psi) - np.asarray(target)) / np.pi
+
+
+def eea_cost(residual: np.ndarray) -> np.ndarray:
+    """h_EEA (...): the mean over both arms of |residual|; NaN if a residual is NaN."""
+    return np.mean(np.abs(residual), axis=-1)
+
+
+def eea_r_target(psi: np.ndarray, psi_human: np.ndarray, psi_mmm: np.ndarray) -> np.ndarray:
+    """The EEA^r target (..., 2): whichever of Ψ_human and Ψ_MMM is angularly nearer to Ψ.
+
+    So ``eea_cost(eea_residual(psi, target))`` per arm equals
+    ``min(h_EEA, d_θ(Ψ, Ψ_MMM) / π)``. A NaN candidate loses to a finite one.
+    """
+    d_h = np.abs(wrap(np.asarray(psi) - psi_human))
+    d_m = np.abs(wrap(np.asarray(psi) - psi_mmm))
+    use_mmm = (d_m < d_h) | (np.isnan(d_h) & ~np.isnan(d_m))
+    return np.where(use_mmm, psi_mmm, psi_human)

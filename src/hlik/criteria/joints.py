@@ -1,0 +1,90 @@
+"""Joint-space criteria: HJA^r (mapped human joint angles), HJL (human joint limits), JLA (robot limits).
+
+All three are linear in q: residual ``e = S (q - target) / scale`` with selection rows ``S``, and the
+metric is the mean of squares.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from hlik.criteria.angles import joint_difference
+from hlik.human import human_model
+from hlik.robot import Robot
+
+
+@dataclass(frozen=True, eq=False)
+class JointBand:
+    """A target and half-width per selected joint: ``e = (q[idx] - centre) / half``.
+
+    Attributes:
+        idx: (k,) robot joint indices.
+        centre: (k,) or (F, k) targets, rad.
+        half: (k,) half-widths, rad (1 for plain differences).
+        unlimited: (k,) joints compared by angular distance.
+    """
+
+    idx: np.ndarray
+    centre: np.ndarray
+    half: np.ndarray
+    unlimited: np.ndarray
+
+    def residual(self, q: np.ndarray) -> np.ndarray:
+        """(F, k) residual for configurations (F, n)."""
+        return joint_difference(q[..., self.idx], self.centre, self.unlimited) / self.half
+
+    def jacobian(self, n: int) -> np.ndarray:
+        """(k, n) constant Jacobian of :meth:`residual`."""
+        jac = np.zeros((len(self.idx), n))
+        jac[np.arange(len(self.idx)), self.idx] = 1.0 / self.half
+        return jac
+
+
+def mean_square(residual: np.ndarray) -> np.ndarray:
+    """(F,) mean of squares over the last axis: the cost h of HJA^r, HJL, SOA_q, fJLA."""
+    return np.mean(np.square(residual), axis=-1)
+
+
+def mapped_pose(robot: Robot, joint_names: tuple[str, ...], joints: np.ndarray) -> JointBand:
+    """HJA^r: the human pose mapped to the robot's arm joints (unclipped) as per-frame targets."""
+    mapped = robot.mapping.apply(joint_names, joints)
+    names = [m.joint for m in robot.mapping.joints]
+    idx = np.asarray(robot.index(names))
+    centre = np.stack([mapped[n] for n in names], axis=-1)
+    return JointBand(idx, centre, np.ones(len(idx)), _unlimited(robot, idx))
+
+
+def human_limits(robot: Robot) -> JointBand:
+    """HJL: the MMM model's arm limits mapped into robot joints through ``q = a q_mmm + b``.
+
+    A dynamic offset is frozen at the centre of its source joint's range (the paper does the same
+    for ARMAR-6 to get fixed limits). Held joints (a = 0) have no human range and are left out.
+    """
+    human = human_model(1.0)
+    maps = [m for m in robot.mapping.joints if m.mmm is not None and m.a != 0.0]
+    lo, hi = [], []
+    for m in maps:
+        low, high = human.joint(m.mmm).range
+        shift = m.b
+        if m.offset is not None:
+            src = human.joint(m.offset.mmm).range
+            shift += float(m.offset(np.array([(src[0] + src[1]) / 2.0]))[0])
+        a, b = sorted((m.a * low + shift, m.a * high + shift))
+        lo.append(a)
+        hi.append(b)
+    lo, hi = np.array(lo), np.array(hi)
+    idx = np.asarray(robot.index([m.joint for m in maps]))
+    return JointBand(idx, (lo + hi) / 2.0, (hi - lo) / 2.0, _unlimited(robot, idx))
+
+
+def robot_limits(robot: Robot) -> JointBand:
+    """fJLA: the robot's own limits; limitless joints are left out."""
+    idx = np.flatnonzero(np.isfinite(robot.lower) & np.isfinite(robot.upper))
+    lo, hi = robot.lower[idx], robot.upper[idx]
+    return JointBand(idx, (lo + hi) / 2.0, (hi - lo) / 2.0, np.zeros(len(idx), bool))
+
+
+def _unlimited(robot: Robot, idx: np.ndarray) -> np.ndarray:
+    return ~np.isfinite(robot.lower[idx])

@@ -1,0 +1,162 @@
+"""Learned pieces of the criteria, per robot: synergies, the Psi_human regressor and lambda_R.
+
+They are fitted on a corpus of human motions (a folder of MMM files chosen by the user; default
+the bundled demo) and cached on disk, keyed by robot and corpus content, so a change of either
+refits. The corpus is resampled to 100 Hz, the first and last second of each recording dropped,
+and every motion also mirrored (paper Sec. III-B).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import tempfile
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from hlik.criteria.eea import SwivelPredictor
+from hlik.criteria.manipulability import scale_factor
+from hlik.criteria.synergy import Synergies, fit_synergies
+from hlik.errors import HlikError
+from hlik.motion import HumanMotion, load_motion
+from hlik.paths import demo_motion_path, robots_dir
+from hlik.placement import shoulder_frame
+from hlik.robot import SIDES, Robot
+from hlik.solvers.jm import joint_mapping
+
+RATE = 100.0
+TRIM = 1.0  # s dropped at each end of a recording
+CACHE_VERSION = "learned/1"
+
+
+@dataclass(frozen=True, eq=False)
+class Learned:
+    """What a robot's criteria learn from human data.
+
+    Attributes:
+        robot: Robot name.
+        corpus: Names of the corpus files.
+        synergies: Postural and first-order synergies of the robot-mapped corpus.
+        swivel: The Psi_human regressor refitted on the corpus (formulas.md §1.2).
+        swivel_rms: Its RMS error on the corpus, rad.
+        scale: lambda_R, the manipulability scale of the robot against the normalised MMM model.
+    """
+
+    robot: str
+    corpus: tuple[str, ...]
+    synergies: Synergies
+    swivel: SwivelPredictor
+    swivel_rms: float
+    scale: float
+
+
+def corpus_files(folder: str | Path | None = None) -> list[Path]:
+    """The motion files of a corpus folder (``*.xml``), or the bundled demo."""
+    if folder is None:
+        return [demo_motion_path()]
+    folder = Path(folder)
+    files = sorted(folder.glob("*.xml")) if folder.is_dir() else [folder]
+    if not files or not all(f.is_file() for f in files):
+        raise HlikError(f"{folder}: no motion files (*.xml) found for the corpus")
+    return files
+
+
+def learn(robot: Robot, corpus: str | Path | None = None, cache: bool = True) -> Learned:
+    """Fit (or load from the cache) the learned pieces of ``robot`` on a corpus folder."""
+    files = corpus_files(corpus)
+    path = cache_dir() / f"{robot.name}-{_key(robot, files)}.npz"
+    if cache and path.is_file():
+        try:
+            return _load(path)
+        except (OSError, KeyError, ValueError):
+            pass  # a stale or broken cache entry is refitted
+    learned = fit(robot, [load_motion(f, rate=RATE) for f in files], tuple(f.name for f in files))
+    if cache:
+        _save(learned, path)
+    return learned
+
+
+def fit(robot: Robot, motions: Sequence[HumanMotion], names: tuple[str, ...] = ()) -> Learned:
+    """Fit synergies and the Psi regressor on ``motions`` (and their mirror images); sample lambda_R."""
+    corpus = []
+    for m in motions:
+        m = m if abs(m.rate - RATE) < 1e-6 else m.resample(RATE)
+        if m.duration > 4 * TRIM:
+            m = m.crop(TRIM, m.duration - TRIM)
+        corpus += [m, m.mirrored()]
+    idx = np.asarray(robot.index([j for s in SIDES for j in robot.arm_joints[s]]))
+    poses = [joint_mapping(robot, m)[:, idx] for m in corpus]
+    synergies = fit_synergies(poses, 1.0 / RATE, idx, ~np.isfinite(robot.lower[idx]))
+    swivel, rms = SwivelPredictor.fit(*_body_frame_kinematics(corpus))
+    return Learned(robot.name, names, synergies, swivel, float(rms), float(scale_factor(robot)))
+
+
+def cache_dir() -> Path:
+    """``$HLIK_CACHE``, else ``$XDG_CACHE_HOME/hlik``, else ``~/.cache/hlik``."""
+    if "HLIK_CACHE" in os.environ:
+        return Path(os.environ["HLIK_CACHE"])
+    return Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "hlik"
+
+
+def _body_frame_kinematics(motions: Sequence[HumanMotion]) -> tuple[np.ndarray, ...]:
+    """Shoulder, elbow, wrist, TCP position (N, 2, 3) and TCP rotation (N, 2, 3, 3) of all frames,
+    each frame expressed in its own heading frame (x along the shoulders, z up)."""
+    parts = []
+    for m in motions:
+        k = m.kinematics()
+        frames = [shoulder_frame(s[0], s[1]) for s in k.shoulder]
+        rot = np.stack([f[0] for f in frames])  # (T, 3, 3) world <- body
+        origin = np.stack([f[1] for f in frames])
+        local = [
+            np.einsum("tji,tsj->tsi", rot, p - origin[:, None])
+            for p in (k.shoulder, k.elbow, k.wrist, k.tcp_pos)
+        ]
+        local.append(np.einsum("tji,tsjk->tsik", rot, k.tcp_rot))
+        parts.append(local)
+    return tuple(np.concatenate([p[i] for p in parts]) for i in range(5))
+
+
+def _key(robot: Robot, files: Sequence[Path]) -> str:
+    digest = hashlib.sha256(CACHE_VERSION.encode())
+    for path in (robots_dir() / f"{robot.name}.toml", robot.mjcf, robots_dir() / "mjcf" / "mmm.xml", *files):
+        digest.update(Path(path).name.encode())
+        digest.update(Path(path).read_bytes())
+    return digest.hexdigest()[:16]
+
+
+def _save(learned: Learned, path: Path) -> None:
+    s = learned.synergies
+    arrays = {
+        "robot": np.array(learned.robot),
+        "corpus": np.array(learned.corpus, dtype=str),
+        "swivel_coef": learned.swivel.coef,
+        "swivel_rms": np.array(learned.swivel_rms),
+        "scale": np.array(learned.scale),
+        **{f"syn.{k}": getattr(s, k) for k in Synergies.__dataclass_fields__},
+    }
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as f:
+            np.savez(f, **arrays)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def _load(path: Path) -> Learned:
+    with np.load(path, allow_pickle=False) as z:
+        a = {k: z[k] for k in z.files}
+    synergies = Synergies(**{k: a[f"syn.{k}"] for k in Synergies.__dataclass_fields__})
+    return Learned(
+        robot=str(a["robot"]),
+        corpus=tuple(a["corpus"].tolist()),
+        synergies=synergies,
+        swivel=SwivelPredictor(a["swivel_coef"]),
+        swivel_rms=float(a["swivel_rms"]),
+        scale=float(a["scale"]),
+    )

@@ -1,0 +1,142 @@
+"""The unified metric, the joint-space and synergy criteria, learned pieces and `hlik evaluate`."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from hlik import load_motion, load_robot, retarget
+from hlik.cli import app
+from hlik.criteria import unified
+from hlik.criteria.joints import human_limits, mapped_pose, robot_limits
+from hlik.demo import demo_motion
+from hlik.errors import HlikError
+from hlik.learned import cache_dir, learn
+from hlik.metrics import evaluate
+
+ROBOTS = ("armar3", "armar6", "dual_panda")
+
+
+def _fd(fun, q, eps=1e-6):
+    cols = []
+    for j in range(q.shape[-1]):
+        dq = np.zeros_like(q)
+        dq[..., j] = eps
+        cols.append((fun(q + dq) - fun(q - dq)) / (2 * eps))
+    return np.stack(cols, axis=-1)
+
+
+def test_logistic_and_weights():
+    for x0 in unified.X0.values():
+        assert unified.logistic(x0, x0) == pytest.approx(0.5)
+        assert unified.logistic(0.0, x0) > 0.99 and unified.logistic(2 * x0, x0) < 0.01
+        assert np.all(np.diff(unified.logistic(np.linspace(0, 3 * x0, 50), x0)) < 0)
+    assert sum(unified.WEIGHTS.values()) == pytest.approx(1.0)
+    assert set(unified.WEIGHTS) == set(unified.X0) == set(unified.CRITERIA)
+    m = dict.fromkeys(unified.CRITERIA, 0.7)
+    assert unified.hierarchical(m) == pytest.approx(0.7)
+    assert unified.combined(1.0, 0.0) == 0.5
+
+
+@pytest.mark.parametrize("robot", ROBOTS)
+def test_joint_and_synergy_jacobians_match_finite_differences(robot):
+    r = load_robot(robot)
+    rng = np.random.default_rng(1)
+    q = rng.uniform(np.maximum(r.lower, -3), np.minimum(r.upper, 3), (3, r.dof))
+    motion = demo_motion().crop(0, 0.2)
+    syn = learn(r).synergies
+    q_ref = rng.normal(size=(3, r.dof))
+    bands = (human_limits(r), robot_limits(r), mapped_pose(r, motion.joint_names, motion.joints[:3]))
+    for band in bands:
+        np.testing.assert_allclose(
+            _fd(band.residual, q),
+            np.broadcast_to(band.jacobian(r.dof), (3,) + band.jacobian(r.dof).shape),
+            atol=1e-6,
+        )
+    np.testing.assert_allclose(_fd(syn.syn_residual, q)[0], syn.syn_jacobian(r.dof), atol=1e-6)
+    np.testing.assert_allclose(
+        _fd(lambda x: syn.syn_r_residual(x, q_ref), q)[0], syn.syn_r_jacobian(r.dof), atol=1e-6
+    )
+
+
+@pytest.mark.parametrize("robot", ROBOTS)
+def test_reference_criteria_vanish_on_the_mapped_human(robot):
+    r = load_robot(robot)
+    motion = demo_motion().crop(0, 2)
+    hja = mapped_pose(r, motion.joint_names, motion.joints)
+    q = np.tile(r.home, (motion.n_frames, 1))
+    q[:, hja.idx] = hja.centre
+    np.testing.assert_allclose(hja.residual(q), 0.0, atol=1e-12)
+    np.testing.assert_allclose(learn(r).synergies.syn_r_residual(q, q), 0.0, atol=1e-12)
+    assert np.abs(hja.residual(q + 0.1)).max() > 0.05
+
+
+def test_human_limits_map_the_mmm_range():
+    r = load_robot("dual_panda")  # Table I mapping without dynamic offsets
+    band = human_limits(r)
+    assert np.all(band.half > 0)
+    lo, hi = band.centre - band.half, band.centre + band.half
+    # the mapped range of every joint is an interval of the MMM range's length
+    m = r.mapping.get("right_joint4")  # elbow: a = -1 on REx in [0, 2.79]
+    k = list(r.index([r.joint_names[i] for i in band.idx])).index(r.index("right_joint4"))
+    assert sorted((m.a * 0 + m.b, m.a * 2.79253 + m.b)) == pytest.approx([lo[k], hi[k]], abs=1e-5)
+
+
+@pytest.mark.parametrize("robot", ROBOTS)
+def test_jm_on_a_recorded_take_scores_in_unit_interval(robot, takes):
+    r = load_robot(robot)
+    traj = retarget(load_motion(takes[2], rate=100.0), r)
+    for scenario in ("pose", "relative"):
+        ev = evaluate(traj, r, learn(r), scenario=scenario)
+        for k, h in ev.h.items():
+            assert h.shape == (traj.n_frames,) and np.all(np.isfinite(h)), k
+        for k, m in ev.m.items():
+            assert 0.0 <= m <= 1.0, k
+        assert 0.0 <= ev.m_hl <= 1.0 and 0.0 <= ev.m_f <= 1.0
+        assert ev.m_hl_f == pytest.approx(0.5 * (ev.m_hl + ev.m_f))
+        assert set(ev.m) == set(unified.CRITERIA) | set(unified.FUNCTIONAL_X0[scenario])
+    # JM follows the mapped human wherever the limits allow
+    assert ev.m["HJA_r"] > 0.95 and ev.m["SYN_r"] > 0.95
+
+
+def test_learned_is_cached_by_robot_and_corpus(tmp_path):
+    r = load_robot("dual_panda")
+    first = learn(r)
+    files = sorted(cache_dir().glob("dual_panda-*.npz"))
+    assert files
+    again = learn(r)
+    np.testing.assert_array_equal(again.synergies.basis, first.synergies.basis)
+    assert again.scale == first.scale and again.swivel_rms == first.swivel_rms
+    assert 0.5 < first.synergies.explained.sum() <= 1.0 and first.synergies.basis.shape[0] == 5
+    corpus = tmp_path / "corpus"
+    corpus.mkdir()
+    demo = demo_motion().crop(0, 6)
+    from hlik.mmm_format import write_mmm
+
+    write_mmm(demo, corpus / "short.xml")
+    other = learn(r, corpus)
+    assert len(sorted(cache_dir().glob("dual_panda-*.npz"))) == len(files) + 1
+    assert not np.allclose(other.synergies.mean, first.synergies.mean)
+    with pytest.raises(HlikError, match="no motion files"):
+        learn(r, tmp_path / "empty")
+
+
+def test_evaluate_cli(tmp_path, takes):
+    traj = retarget(load_motion(takes[0], rate=100.0), load_robot("armar3"))
+    path = traj.save(tmp_path / "t.npz")
+    result = CliRunner().invoke(app, ["evaluate", str(path)])
+    assert result.exit_code == 0, result.output
+    assert all(k in result.stdout for k in ("EEA", "MAN_r", "m_hl", "fPOS"))
+    result = CliRunner().invoke(app, ["evaluate", str(path), "--json", "--scenario", "relative"])
+    data = json.loads(result.stdout)
+    assert set(data["metrics"]) == set(unified.CRITERIA)
+    assert set(data["functional"]) == {"fJLA", "fPOS_off", "fORI_off", "fPOS", "fORI"}
+    assert all(set(v) == {"h", "m"} for v in data["metrics"].values())
+    assert data["m_hl_f"] == pytest.approx(0.5 * (data["m_hl"] + data["m_f"]))
+    bad = CliRunner().invoke(app, ["evaluate", str(tmp_path / "missing.npz")])
+    assert bad.exit_code == 2 and "missing.npz: no such file" in bad.stderr
+    bad = CliRunner().invoke(app, ["evaluate", str(path), "--scenario", "other"])
+    assert bad.exit_code == 2 and "unknown scenario" in bad.stderr
