@@ -48,7 +48,7 @@ def _fail(err: HlikError) -> None:
 def run(
     motion: MotionArg = None,
     robot: Annotated[str, typer.Option("--robot", "-r", help="Robot name (see `hlik robots`).")] = "armar6",
-    solver: Annotated[str, typer.Option("--solver", "-s", help="Retargeting solver: jm.")] = "jm",
+    solver: Annotated[str, typer.Option("--solver", "-s", help="Retargeting solver: jm or qp.")] = "jm",
     out: Annotated[
         Path | None,
         typer.Option("--out", "-o", help="Output .rrd (default: recordings/<motion>_<robot>_<solver>.rrd)."),
@@ -59,40 +59,69 @@ def run(
     ] = "side",
     corpus: CorpusOpt = None,
     scenario: ScenarioOpt = "pose",
+    criteria: Annotated[
+        str, typer.Option(help="qp: comma-separated human-likeness criteria to add, e.g. SYN,HJA_r.")
+    ] = "",
 ) -> None:
     """Retarget a motion to a robot; write a Rerun recording and the trajectory (.npz) beside it."""
-    from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        SpinnerColumn,
+        TextColumn,
+        TimeElapsedColumn,
+    )
 
+    from hlik.criteria.unified import CRITERIA
     from hlik.learned import learn
     from hlik.metrics import evaluate as evaluate_trajectory
     from hlik.motion import load_motion
     from hlik.recording import LAYOUTS, write_recording
     from hlik.retarget import retarget
     from hlik.robot import load_robot
-    from hlik.solvers import SOLVERS
+    from hlik.solvers import SOLVER_NAMES
 
     path = motion or demo_motion_path()
     try:
-        if solver not in SOLVERS:
-            raise HlikError(f"unknown solver {solver!r}; choose one of: {', '.join(SOLVERS)}")
+        if solver not in SOLVER_NAMES:
+            raise HlikError(f"unknown solver {solver!r}; choose one of: {', '.join(SOLVER_NAMES)}")
+        chosen = tuple(c.strip() for c in criteria.split(",") if c.strip())
+        unknown = [c for c in chosen if c not in CRITERIA]
+        if unknown:
+            raise HlikError(f"unknown criteria {', '.join(unknown)}; choose from: {', '.join(CRITERIA)}")
+        if chosen and solver != "qp":
+            raise HlikError("--criteria needs --solver qp")
         if layout not in LAYOUTS:
             raise HlikError(f"unknown layout {layout!r}; choose one of: {', '.join(LAYOUTS)}")
         _check_scenario(scenario)
         if rate < 0:
             raise HlikError(f"--rate must be positive (or 0 to keep the motion's rate), got {rate:g}")
         r = load_robot(robot)
-        rrd = out or Path("recordings") / f"{path.stem}_{r.name}_{solver}.rrd"
+        tag = "_".join((solver, *chosen))
+        rrd = out or Path("recordings") / f"{path.stem}_{r.name}_{tag}.rrd"
         _check_writable(rrd, create=out is None)
         columns = (SpinnerColumn(), TextColumn("{task.description}"), TimeElapsedColumn())
+        columns = (*columns[:2], BarColumn(), MofNCompleteColumn(), columns[2])
         with Progress(*columns, console=Console(stderr=True), transient=True) as progress:
             task = progress.add_task(f"reading {path.name}", total=None)
             m = load_motion(path, rate=rate or None)
-            progress.update(task, description=f"retargeting {m.n_frames} frames to {r.title} ({solver})")
+            learned = learn(r, corpus)
+            progress.update(
+                task, description=f"retargeting to {r.title} ({tag})", total=m.n_frames, completed=0
+            )
             start = time.perf_counter()
-            traj = retarget(m, r, solver)
+            if solver == "qp":
+                from hlik.solvers.qp import QPSettings, qp_solver
+
+                step = lambda k: progress.update(task, completed=k + 1)  # noqa: E731
+                traj = retarget(m, r, qp_solver(QPSettings(criteria=chosen), learned, progress=step))
+            else:
+                traj = retarget(m, r, solver)
+            progress.update(task, completed=m.n_frames)
             solve_time = time.perf_counter() - start
             progress.update(task, description="evaluating the criteria")
-            ev = evaluate_trajectory(traj, r, learn(r, corpus), scenario=scenario)
+            ev = evaluate_trajectory(traj, r, learned, scenario=scenario)
             progress.update(task, description=f"writing {rrd}")
             npz = traj.save(rrd.with_suffix(".npz"))
             write_recording(rrd, traj, r, layout=layout, metrics=ev.curves())
@@ -126,6 +155,8 @@ def _run_summary(title: str, traj, motion, solve_time: float, rrd: Path, npz: Pa
     fpos = position_error(traj.tcp_pos, traj.targets.pos)
     fori = rotation_angle(traj.tcp_rot, traj.targets.rot)
     table = Table(show_header=False, box=None, title=f"{title} -> {traj.robot} ({traj.solver})")
+    table.add_column(no_wrap=True)
+    table.add_column(overflow="fold")
     table.add_row("frames", f"{traj.n_frames} over {motion.duration:.2f} s at {motion.rate:.1f} Hz")
     table.add_row("solve time", f"{solve_time:.2f} s ({1e3 * solve_time / traj.n_frames:.3f} ms/frame)")
     for i, side in enumerate(("left", "right")):

@@ -10,7 +10,7 @@ from hlik.errors import HlikError
 from hlik.motion import HumanMotion
 from hlik.placement import Placement, shoulder_placement
 from hlik.robot import Robot, tcp_poses
-from hlik.solvers import SOLVERS, Solver
+from hlik.solvers import SOLVER_NAMES, Solver, get_solver
 from hlik.targets import hand_targets
 from hlik.trajectory import Trajectory
 
@@ -18,20 +18,20 @@ from hlik.trajectory import Trajectory
 def retarget(
     motion: HumanMotion, robot: Robot, solver: str | Solver = "jm", placement: Placement | None = None
 ) -> Trajectory:
-    """Retarget ``motion`` to ``robot`` with ``solver`` (a name in ``hlik.solvers.SOLVERS`` or a callable).
+    """Retarget ``motion`` to ``robot`` with ``solver``: a name in ``SOLVER_NAMES``, or a callable.
 
     ``placement`` defaults to :func:`hlik.placement.shoulder_placement`.
     """
     if isinstance(solver, str):
-        if solver not in SOLVERS:
-            raise HlikError(f"unknown solver {solver!r}; choose one of: {', '.join(SOLVERS)}")
-        name, solve = solver, SOLVERS[solver]
+        if solver not in SOLVER_NAMES:
+            raise HlikError(f"unknown solver {solver!r}; choose one of: {', '.join(SOLVER_NAMES)}")
+        name, solve = solver, get_solver(solver)
     else:
         name, solve = getattr(solver, "__name__", "custom"), solver
     human = motion.kinematics()
     placement = placement or shoulder_placement(robot, human)
     targets = hand_targets(human, placement)
-    q = np.asarray(solve(robot, motion, targets), dtype=float)
+    q = np.asarray(solve(robot, motion, targets, placement), dtype=float)
     tcp_pos, tcp_rot = tcp_poses(robot, q)
     return Trajectory(
         robot=robot.name,

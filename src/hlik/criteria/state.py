@@ -47,11 +47,17 @@ class RobotState:
         return self.sites[:, :, 3]
 
 
-def robot_state(robot: Robot, q: np.ndarray, jacobians: bool = False) -> RobotState:
-    """Forward kinematics (and site Jacobians) of ``robot`` at configurations ``q`` (F, n) or (n,)."""
+def robot_state(
+    robot: Robot, q: np.ndarray, jacobians: bool = False, data: mujoco.MjData | None = None
+) -> RobotState:
+    """Forward kinematics (and site Jacobians) of ``robot`` at configurations ``q`` (F, n) or (n,).
+
+    Pass ``data`` (an ``MjData`` of ``robot.model``) when calling per step: making one costs more
+    than the kinematics.
+    """
     q = np.atleast_2d(np.asarray(q, dtype=float))
     model = robot.model
-    data = mujoco.MjData(model)
+    data = mujoco.MjData(model) if data is None else data
     ids = np.array([[robot.site_id(s, n) for n in SITES] for s in SIDES])
     flat = ids.ravel()
     sites = np.empty((len(q), 2, len(SITES), 3))

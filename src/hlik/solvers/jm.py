@@ -6,11 +6,14 @@ import numpy as np
 
 from hlik.errors import MotionFormatError
 from hlik.motion import HumanMotion
+from hlik.placement import Placement
 from hlik.robot import Robot
 from hlik.targets import HandTargets
 
 
-def joint_mapping(robot: Robot, motion: HumanMotion, targets: HandTargets | None = None) -> np.ndarray:
+def joint_mapping(
+    robot: Robot, motion: HumanMotion, targets: HandTargets | None = None, placement: Placement | None = None
+) -> np.ndarray:
     """Map the MMM joint angles to the robot through its Table I mapping.
 
     Joints the mapping does not cover (ARMAR-III's hip) stay at home; mapped angles are clipped

@@ -1,0 +1,188 @@
+"""QP retargeting: per frame, repeated convex QP steps over a stack of least-squares terms.
+
+Each step minimises ``sum_i ||c_i (J_i dq + e_i)||^2 + damping ||dq||^2`` subject to the joint
+limits (and a step bound), the stack being the two TCP pose terms, smoothness toward the previous
+frames and the chosen human-likeness criteria (:mod:`hlik.terms`). All residuals and Jacobians come
+from one forward-kinematics pass and are stacked into a single problem for the QP solver (daqp by
+default), so no per-task Python objects are built per step. Frames are warm-started from the
+previous solution; a frame stops when the step is below ``tol`` or after ``max_iter`` steps.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import daqp
+import mujoco
+import numpy as np
+import qpsolvers
+
+from hlik.criteria.eea import forward_fill, swivel_angle
+from hlik.criteria.manipulability import human_manipulability
+from hlik.criteria.state import robot_state
+from hlik.criteria.unified import GAMMA
+from hlik.learned import Learned, learn
+from hlik.motion import HumanMotion
+from hlik.placement import Placement
+from hlik.robot import Robot
+from hlik.solvers.jm import joint_mapping
+from hlik.targets import HandTargets
+from hlik.terms import Frame, Pose, Term, criterion_term, smoothness_terms
+
+
+@dataclass(frozen=True)
+class QPSettings:
+    """The task stack and the stopping rule.
+
+    Attributes:
+        criteria: Human-likeness criteria added to the stack (paper names).
+        position_cost, orientation_cost: Pose term weights, per metre and per radian.
+        criterion_cost: Base weight of a criterion; each gets ``gamma_i * criterion_cost / len(criteria)``
+            (Table II's gamma, divided by the number of criteria as in the paper).
+        velocity, acceleration, jerk: Weights of the smoothness terms.
+        damping: Levenberg-Marquardt damping of every step.
+        max_iter: QP steps per frame at most (the first frame gets ten times more).
+        tol: A frame has converged when no joint moves more than this in a step, rad.
+        max_step: Bound on any joint's change in one step, rad.
+        solver: qpsolvers backend.
+    """
+
+    criteria: tuple[str, ...] = ()
+    position_cost: float = 10.0
+    orientation_cost: float = 2.0
+    criterion_cost: float = 0.05
+    velocity: float = 0.02
+    acceleration: float = 0.01
+    jerk: float = 0.005
+    damping: float = 1e-6
+    max_iter: int = 20
+    tol: float = 1e-4
+    max_step: float = 0.2
+    solver: str = "daqp"
+
+
+def build_terms(robot: Robot, settings: QPSettings, learned: Learned | None) -> list[Term]:
+    """The stack of ``settings`` for ``robot``: pose, smoothness, criteria with their weights."""
+    terms: list[Term] = [Pose(settings.position_cost, settings.orientation_cost)]
+    terms += smoothness_terms(robot.dof, settings.velocity, settings.acceleration, settings.jerk)
+    for name in settings.criteria:
+        term = criterion_term(name, robot, learned)
+        term.cost = GAMMA.get(name, 1.0) * settings.criterion_cost / len(settings.criteria)
+        terms.append(term)
+    return terms
+
+
+def frames(robot: Robot, motion: HumanMotion, targets: HandTargets, placement: Placement) -> list[dict]:
+    """Per-frame context arrays (everything in :class:`~hlik.terms.Frame` but the history)."""
+    mapped = robot.mapping.apply(motion.joint_names, motion.joints)
+    q_map = np.tile(robot.home, (motion.n_frames, 1))
+    for name, angles in mapped.items():
+        q_map[:, robot.index(name)] = angles
+    human = motion.kinematics()
+    psi = forward_fill(swivel_angle(human.shoulder, human.elbow, human.wrist))  # yaw-invariant
+    rot = placement.rotation
+    manip = rot.T @ human_manipulability(motion) @ rot
+    return [
+        {
+            "target_pos": targets.pos[k],
+            "target_rot": targets.rot[k],
+            "q_map": q_map[k],
+            "psi_mmm": psi[k],
+            "manip": manip[k],
+        }
+        for k in range(motion.n_frames)
+    ]
+
+
+def step(
+    robot: Robot,
+    terms: Sequence[Term],
+    q: np.ndarray,
+    frame: Frame,
+    settings: QPSettings,
+    data: mujoco.MjData | None = None,
+) -> np.ndarray:
+    """One QP step from ``q`` (n,): the joint change dq (n,). Reuse ``data`` across steps."""
+    state = robot_state(robot, q, jacobians=True, data=data)
+    rows, errors = [], []
+    for term in terms:
+        e, jac = term(state, frame)
+        cost = term.cost if np.isscalar(term.cost) else np.asarray(term.cost)[:, None]
+        rows.append(cost * jac)
+        errors.append(np.ravel(cost) * e if not np.isscalar(cost) else cost * e)
+    a, b = np.vstack(rows), np.concatenate(errors)
+    hessian = a.T @ a
+    hessian[np.diag_indices_from(hessian)] += settings.damping
+    lb = np.maximum(robot.lower - q, -settings.max_step)
+    ub = np.minimum(robot.upper - q, settings.max_step)
+    dq = _solve(hessian, a.T @ b, lb, ub, settings.solver)
+    if dq is None or not np.all(np.isfinite(dq)):
+        return np.zeros(robot.dof)  # infeasible or failed step: stay (limits hold, nothing NaN)
+    return dq
+
+
+def _solve(hessian, gradient, lb, ub, solver: str) -> np.ndarray | None:
+    if solver != "daqp":
+        return qpsolvers.solve_qp(hessian, gradient, lb=lb, ub=ub, solver=solver)
+    # daqp directly: bounds-only problems need no constraint matrix, and qpsolvers' wrapping costs
+    # as much as the solve itself at this size
+    sense = np.zeros(len(lb), dtype=np.int32)
+    x, _, exitflag, _ = daqp.solve(hessian, gradient, np.zeros((0, len(lb))), ub, lb, sense)
+    return np.asarray(x) if exitflag > 0 else None
+
+
+def solve(
+    robot: Robot,
+    motion: HumanMotion,
+    targets: HandTargets,
+    placement: Placement,
+    settings: QPSettings = QPSettings(),
+    learned: Learned | None = None,
+    progress: Callable[[int], None] | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Retarget frame by frame.
+
+    Returns:
+        (T, n) joint angles and (T,) number of QP steps taken per frame.
+    """
+    if settings.criteria and learned is None:
+        learned = learn(robot)
+    terms = build_terms(robot, settings, learned)
+    context = frames(robot, motion, targets, placement)
+    dt = float(np.median(np.diff(motion.times))) if motion.n_frames > 1 else 0.01
+    q = np.clip(
+        joint_mapping(robot, motion.crop(0.0, 0.0)).reshape(-1)[: robot.dof], robot.lower, robot.upper
+    )
+    history = np.tile(q, (3, 1))
+    data = mujoco.MjData(robot.model)
+    out = np.empty((motion.n_frames, robot.dof))
+    steps = np.zeros(motion.n_frames, dtype=int)
+    for k, ctx in enumerate(context):
+        frame = Frame(**ctx, history=history, dt=dt)
+        for it in range(settings.max_iter * (10 if k == 0 else 1)):
+            dq = step(robot, terms, q, frame, settings, data)
+            q = np.clip(q + dq, robot.lower, robot.upper)
+            steps[k] = it + 1
+            if np.max(np.abs(dq)) < settings.tol:
+                break
+        if k == 0:
+            history = np.tile(q, (3, 1))
+        out[k] = q
+        history = np.vstack([q, history[:2]])
+        if progress is not None:
+            progress(k)
+    return out, steps
+
+
+def qp_solver(
+    settings: QPSettings = QPSettings(),
+    learned: Learned | None = None,
+    progress: Callable[[int], None] | None = None,
+):
+    """A solver for :func:`hlik.retarget.retarget` with the given settings."""
+
+    def qp(robot: Robot, motion: HumanMotion, targets: HandTargets, placement: Placement) -> np.ndarray:
+        return solve(robot, motion, targets, placement, settings, learned, progress)[0]
+
+    return qp

@@ -1,0 +1,73 @@
+"""hlik's criteria as mink tasks and limits, usable in a plain ``mink.solve_ik`` beside mink's own.
+
+:class:`CriterionTask` adapts any :class:`hlik.terms.Term` (the same residual and Jacobian the QP
+solver and the metrics use); the frame context is set per frame with :meth:`CriterionTask.set_frame`.
+:class:`HumanJointLimit` keeps the mapped joints inside the human's range as hard inequalities.
+"""
+
+from __future__ import annotations
+
+import mink
+import mujoco
+import numpy as np
+from mink.limits import Constraint, Limit
+
+from hlik.criteria.joints import human_limits
+from hlik.criteria.state import robot_state
+from hlik.learned import Learned
+from hlik.robot import Robot
+from hlik.terms import Frame, Term, criterion_term
+
+
+class CriterionTask(mink.Task):
+    """A least-squares hlik term as a ``mink.Task``; the robot's ``qpos`` is its configuration."""
+
+    def __init__(
+        self, robot: Robot, term: Term, cost: float = 1.0, gain: float = 1.0, lm_damping: float = 0.0
+    ):
+        self.robot, self.term, self.frame = robot, term, None
+        self._scale = float(cost)
+        self._data = mujoco.MjData(robot.model)
+        super().__init__(cost=np.ones(0), gain=gain, lm_damping=lm_damping)
+
+    @classmethod
+    def criterion(cls, name: str, robot: Robot, learned: Learned, cost: float = 1.0) -> CriterionTask:
+        """The task of a paper criterion (``EEA``, ``SOA_x``, ..., ``MAN_r``)."""
+        return cls(robot, criterion_term(name, robot, learned), cost)
+
+    def set_frame(self, frame: Frame) -> None:
+        """Set the frame context (hand targets, mapped human pose, previous solutions)."""
+        self.frame = frame
+
+    def compute_error(self, configuration: mink.Configuration) -> np.ndarray:
+        return self._residual(configuration)[0]
+
+    def compute_jacobian(self, configuration: mink.Configuration) -> np.ndarray:
+        return self._residual(configuration)[1]
+
+    def _residual(self, configuration: mink.Configuration) -> tuple[np.ndarray, np.ndarray]:
+        if self.frame is None:
+            raise mink.exceptions.TargetNotSet(type(self).__name__)
+        state = robot_state(self.robot, configuration.q, jacobians=True, data=self._data)
+        e, jac = self.term(state, self.frame)
+        # mink reads the cost vector's length as the task dimension
+        self.cost = self._scale * np.broadcast_to(self.term.cost, e.shape).astype(float)
+        return e, jac
+
+
+class HumanJointLimit(Limit):
+    """HJL as hard limits: mapped joints stay within the MMM range mapped through (a, b)."""
+
+    def __init__(self, robot: Robot, gain: float = 0.95):
+        band = human_limits(robot)
+        self.idx, self.gain, self.n = band.idx, gain, robot.dof
+        self.lower, self.upper = band.centre - band.half, band.centre + band.half
+
+    def compute_qp_inequalities(self, configuration: mink.Configuration, dt: float) -> Constraint:
+        q = configuration.q[self.idx]
+        # a joint already outside the human range may move back, never further out
+        upper = np.maximum(self.gain * (self.upper - q), 0.0)
+        lower = np.maximum(self.gain * (q - self.lower), 0.0)
+        select = np.zeros((len(self.idx), self.n))
+        select[np.arange(len(self.idx)), self.idx] = 1.0
+        return Constraint(G=np.vstack([select, -select]), h=np.concatenate([upper, lower]))

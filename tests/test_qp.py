@@ -1,0 +1,131 @@
+"""QP retargeting: hlik terms inside plain mink, the stacked solver, stopping rule, unreachable targets."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import mink
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from hlik import load_motion, load_robot, retarget
+from hlik.cli import app
+from hlik.criteria.state import robot_state
+from hlik.demo import demo_motion
+from hlik.learned import learn
+from hlik.placement import shoulder_placement
+from hlik.solvers.qp import QPSettings, qp_solver, solve
+from hlik.targets import HandTargets, hand_targets
+from hlik.tasks import CriterionTask, HumanJointLimit
+from hlik.terms import Frame, Pose, rotation_vector
+
+ROBOTS = ("armar3", "armar6", "dual_panda")
+
+
+def _frame(robot, q_target):
+    s = robot_state(robot, q_target)
+    eye = np.tile(np.eye(3), (2, 1, 1))
+    return Frame(s.tcp[0], s.tcp_rot[0], q_target, np.full(2, 2.5), eye, np.tile(q_target, (3, 1)), 0.01)
+
+
+@pytest.mark.parametrize("robot", ROBOTS)
+def test_criteria_work_inside_plain_mink(robot):
+    r = load_robot(robot)
+    learned = learn(r)
+    config = mink.Configuration(r.model, np.clip(r.home, r.lower, r.upper))
+    hand = mink.FrameTask("left_tcp", "site", position_cost=1.0, orientation_cost=0.5)
+    hand.set_target_from_configuration(config)
+    posture = mink.PostureTask(r.model, cost=1e-3)
+    posture.set_target(config.q.copy())
+    goal = np.clip(r.home + 0.2, r.lower, r.upper)
+    tasks = [CriterionTask.criterion(name, r, learned) for name in ("HJA_r", "SYN_r")]
+    for task in tasks:
+        task.set_frame(_frame(r, goal))
+    before = [np.linalg.norm(t.compute_error(config)) for t in tasks]
+    limits = [mink.ConfigurationLimit(r.model), HumanJointLimit(r)]
+    for _ in range(30):
+        v = mink.solve_ik(config, [hand, posture, *tasks], dt=0.01, solver="daqp", limits=limits)
+        config.integrate_inplace(v, 0.01)
+    after = [np.linalg.norm(t.compute_error(config)) for t in tasks]
+    assert np.all(np.isfinite(config.q)) and all(a < b for a, b in zip(after, before)), (before, after)
+    assert np.all(config.q >= r.lower - 1e-6) and np.all(config.q <= r.upper + 1e-6)
+
+
+def test_rotation_vector_and_pose_jacobian():
+    rng = np.random.default_rng(5)
+    from scipy.spatial.transform import Rotation
+
+    rot = Rotation.random(20, random_state=rng)
+    np.testing.assert_allclose(rotation_vector(rot.as_matrix()), rot.as_rotvec(), atol=1e-9)
+    r = load_robot("armar6")
+    q = np.clip(r.home + rng.normal(0, 0.2, r.dof), r.lower, r.upper)
+    frame = _frame(r, q)  # at the target the rotation-vector Jacobian is the angular Jacobian
+    e0, jac = Pose()(robot_state(r, q, jacobians=True), frame)
+    np.testing.assert_allclose(e0, 0.0, atol=1e-9)
+    fd = np.stack(
+        [
+            (Pose()(robot_state(r, q + d, True), frame)[0] - Pose()(robot_state(r, q - d, True), frame)[0])
+            / 2e-6
+            for d in 1e-6 * np.eye(r.dof)
+        ],
+        axis=-1,
+    )
+    np.testing.assert_allclose(fd, jac, atol=1e-5)
+
+
+@pytest.mark.parametrize("robot", ROBOTS)
+def test_reachable_targets_converge_within_the_iteration_limit(robot):
+    """Targets made by the robot itself: every frame stops early, on target."""
+    r = load_robot(robot)
+    motion = demo_motion().crop(0, 1.0).resample(50.0)
+    jm = retarget(motion, r)  # a feasible, smooth robot motion
+    placement = shoulder_placement(r, motion.kinematics())
+    targets = HandTargets(jm.tcp_pos, jm.tcp_rot)
+    settings = QPSettings(max_iter=30)
+    q, steps = solve(r, motion, targets, placement, settings)
+    state = robot_state(r, q)
+    assert np.median(np.linalg.norm(state.tcp - jm.tcp_pos, axis=-1)) < 1e-3
+    assert np.all(steps[1:] <= settings.max_iter) and np.median(steps[1:]) < settings.max_iter
+
+
+def test_unreachable_targets_give_finite_motion_and_report_the_error():
+    r = load_robot("dual_panda")
+    motion = demo_motion().crop(0, 0.5)
+    human = motion.kinematics()
+    placement = shoulder_placement(r, human)
+    far = hand_targets(human, placement)
+    far = replace(far, pos=far.pos + np.array([0.0, 5.0, 0.0]))  # 5 m in front of the robot
+    q, steps = solve(r, motion, far, placement, QPSettings(criteria=("HJA_r",), max_iter=10))
+    assert np.all(np.isfinite(q)) and np.all(q >= r.lower - 1e-9) and np.all(q <= r.upper + 1e-9)
+    err = np.linalg.norm(robot_state(r, q).tcp - far.pos, axis=-1)
+    assert np.all(err > 4.0)  # reported, not hidden
+    assert np.all(steps <= 100)
+
+
+def test_criteria_improve_their_own_score(takes):
+    r = load_robot("armar3")
+    motion = load_motion(takes[0], rate=50.0).crop(1.0, 3.0)
+    learned = learn(r)
+    from hlik.metrics import evaluate
+
+    plain = evaluate(retarget(motion, r, qp_solver(QPSettings(), learned)), r, learned)
+    hja = evaluate(
+        retarget(motion, r, qp_solver(QPSettings(criteria=("HJA_r",), criterion_cost=0.3), learned)),
+        r,
+        learned,
+    )
+    assert hja.m["HJA_r"] > plain.m["HJA_r"]
+    assert np.median(hja.h["fPOS"]) < 0.03
+
+
+def test_cli_qp_with_criteria(takes, tmp_path):
+    out = tmp_path / "q.rrd"
+    args = ["run", str(takes[0]), "--rate", "10", "--solver", "qp", "--criteria", "SYN", "--out", str(out)]
+    result = CliRunner().invoke(app, args)
+    assert result.exit_code == 0, result.output
+    assert out.is_file() and "fPOS mean" in result.stdout
+    bad = CliRunner().invoke(app, ["run", "--criteria", "SYN"])
+    assert bad.exit_code == 2 and "--criteria needs --solver qp" in bad.stderr
+    bad = CliRunner().invoke(app, ["run", "--solver", "qp", "--criteria", "NOPE"])
+    assert bad.exit_code == 2 and "unknown criteria NOPE" in bad.stderr
