@@ -46,7 +46,7 @@ class CriterionTask(mink.Task):
         return self._residual(configuration)[1]
 
     def _residual(self, configuration: mink.Configuration) -> tuple[np.ndarray, np.ndarray]:
-        if self.frame is None:
+        if self.frame is None and self.term.needs_frame:
             raise mink.exceptions.TargetNotSet(type(self).__name__)
         state = robot_state(self.robot, configuration.q, jacobians=True, data=self._data)
         e, jac = self.term(state, self.frame)

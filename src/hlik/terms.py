@@ -49,6 +49,7 @@ class Term:
 
     name = "term"
     cost: float | np.ndarray = 1.0
+    needs_frame = True  # False: the residual depends on the configuration alone
 
     def __call__(self, state: RobotState, frame: Frame) -> tuple[np.ndarray, np.ndarray]:
         raise NotImplementedError
@@ -88,6 +89,8 @@ def rotation_vector(rot: np.ndarray) -> np.ndarray:
 class Joints(Term):
     """A linear joint-space criterion (HJL, or a fixed band)."""
 
+    needs_frame = False
+
     def __init__(self, name: str, band: JointBand, n: int):
         self.name, self.band, self._jac = name, band, band.jacobian(n)
 
@@ -115,7 +118,7 @@ class Synergy(Term):
 
     def __init__(self, learned: Learned, n: int, reference: bool):
         self.name = "SYN_r" if reference else "SYN"
-        self.syn, self.reference = learned.synergies, reference
+        self.syn, self.reference, self.needs_frame = learned.synergies, reference, reference
         self._jac = self.syn.syn_r_jacobian(n) if reference else self.syn.syn_jacobian(n)
 
     def __call__(self, state, frame):
@@ -154,7 +157,7 @@ class Elevation(Term):
 
     def __init__(self, learned: Learned, reference: bool):
         self.name = "EEA_r" if reference else "EEA"
-        self.swivel, self.reference = learned.swivel, reference
+        self.swivel, self.reference, self.needs_frame = learned.swivel, reference, reference
 
     def __call__(self, state, frame):
         psi = eea.swivel_angle(state.shoulder, state.elbow, state.wrist)[0]
@@ -171,7 +174,7 @@ class Soechting(Term):
 
     def __init__(self, robot: Robot, joints: bool):
         self.name = "SOA_q" if joints else "SOA_x"
-        self.robot, self.joints = robot, joints
+        self.robot, self.joints, self.needs_frame = robot, joints, False
         self.l_u, self.l_f = arm_lengths(robot)
 
     def __call__(self, state, frame):
