@@ -50,6 +50,7 @@ class Term:
     name = "term"
     cost: float | np.ndarray = 1.0
     needs_frame = True  # False: the residual depends on the configuration alone
+    sites: tuple[int, ...] = (0, 1, 2, 3)  # site Jacobians it reads (indices into SITES)
 
     def __call__(self, state: RobotState, frame: Frame) -> tuple[np.ndarray, np.ndarray]:
         raise NotImplementedError
@@ -59,6 +60,7 @@ class Pose(Term):
     """Both TCPs to their targets: position error (m) and rotation vector of R R*^T (rad)."""
 
     name = "pose"
+    sites = (3,)
 
     def __init__(self, position_cost: float = 1.0, orientation_cost: float = 0.2):
         self.cost = np.tile(np.r_[np.full(3, position_cost), np.full(3, orientation_cost)], 2)
@@ -90,6 +92,7 @@ class Joints(Term):
     """A linear joint-space criterion (HJL, or a fixed band)."""
 
     needs_frame = False
+    sites = ()
 
     def __init__(self, name: str, band: JointBand, n: int):
         self.name, self.band, self._jac = name, band, band.jacobian(n)
@@ -102,6 +105,7 @@ class MappedPose(Term):
     """HJA^r: toward the mapped human pose of the frame."""
 
     name = "HJA_r"
+    sites = ()
 
     def __init__(self, robot: Robot):
         idx = np.asarray(robot.index([m.joint for m in robot.mapping.joints]))
@@ -115,6 +119,8 @@ class MappedPose(Term):
 
 class Synergy(Term):
     """SYN (reconstruction error) or SYN^r (distance to the mapped human in synergy space)."""
+
+    sites = ()
 
     def __init__(self, learned: Learned, n: int, reference: bool):
         self.name = "SYN_r" if reference else "SYN"
@@ -131,6 +137,7 @@ class Misalignment(Term):
     """MIS as a velocity penalty: the scaled joint velocity outside the first-order synergy span."""
 
     name = "MIS"
+    sites = ()
 
     def __init__(self, learned: Learned, n: int):
         syn = learned.synergies
@@ -144,6 +151,8 @@ class Misalignment(Term):
 
 class Smooth(Term):
     """Velocity, acceleration or jerk: toward the extrapolation of the previous frames (RelaxedIK)."""
+
+    sites = ()
 
     def __init__(self, name: str, stencil: np.ndarray, n: int):
         self.name, self.stencil, self._jac = name, stencil, np.eye(n)
@@ -191,6 +200,7 @@ class Manipulability(Term):
     """MAN^r: the robot's scaled manipulability toward the normalised human's (Mandel log residual)."""
 
     name = "MAN_r"
+    sites = (3,)
 
     def __init__(self, robot: Robot, learned: Learned):
         self.robot, self.scale = robot, learned.scale

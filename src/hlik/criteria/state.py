@@ -48,12 +48,17 @@ class RobotState:
 
 
 def robot_state(
-    robot: Robot, q: np.ndarray, jacobians: bool = False, data: mujoco.MjData | None = None
+    robot: Robot,
+    q: np.ndarray,
+    jacobians: bool = False,
+    data: mujoco.MjData | None = None,
+    jacobian_sites: tuple[int, ...] = (0, 1, 2, 3),
 ) -> RobotState:
     """Forward kinematics (and site Jacobians) of ``robot`` at configurations ``q`` (F, n) or (n,).
 
     Pass ``data`` (an ``MjData`` of ``robot.model``) when calling per step: making one costs more
-    than the kinematics.
+    than the kinematics. ``jacobian_sites`` (indices into :data:`SITES`) limits which site
+    Jacobians are computed; the others are left zero.
     """
     q = np.atleast_2d(np.asarray(q, dtype=float))
     model = robot.model
@@ -62,7 +67,8 @@ def robot_state(
     flat = ids.ravel()
     sites = np.empty((len(q), 2, len(SITES), 3))
     rot = np.empty((len(q), 2, 3, 3))
-    jac = np.empty((len(q), 2, len(SITES), 6, model.nv)) if jacobians else None
+    jac = (np.empty if len(jacobian_sites) == len(SITES) else np.zeros)((len(q), 2, len(SITES), 6, model.nv))
+    jac = jac if jacobians else None
     for k, qk in enumerate(q):
         data.qpos[:] = qk
         mujoco.mj_kinematics(model, data)
@@ -71,8 +77,8 @@ def robot_state(
         if jacobians:
             mujoco.mj_comPos(model, data)
             for i, side_ids in enumerate(ids):
-                for j, sid in enumerate(side_ids):
-                    mujoco.mj_jacSite(model, data, jac[k, i, j, :3], jac[k, i, j, 3:], sid)
+                for j in jacobian_sites:
+                    mujoco.mj_jacSite(model, data, jac[k, i, j, :3], jac[k, i, j, 3:], side_ids[j])
     return RobotState(q, sites, rot, jac)
 
 

@@ -104,7 +104,8 @@ def step(
     data: mujoco.MjData | None = None,
 ) -> np.ndarray:
     """One QP step from ``q`` (n,): the joint change dq (n,). Reuse ``data`` across steps."""
-    state = robot_state(robot, q, jacobians=True, data=data)
+    sites = tuple(sorted({i for term in terms for i in term.sites}))
+    state = robot_state(robot, q, jacobians=bool(sites), data=data, jacobian_sites=sites)
     rows, errors = [], []
     for term in terms:
         e, jac = term(state, frame)
