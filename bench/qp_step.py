@@ -15,12 +15,12 @@ import mujoco
 import numpy as np
 
 import hlik
+from hlik.criteria.reference import human_reference
 from hlik.learned import learn
 from hlik.paths import demo_motion_path
 from hlik.placement import shoulder_placement
-from hlik.solvers.qp import QPSettings, build_terms, frames, step
+from hlik.solvers.qp import QPSettings, build_terms, frame_at, step
 from hlik.targets import hand_targets
-from hlik.terms import Frame
 
 REPEATS = 5
 
@@ -33,7 +33,7 @@ def main() -> None:
     targets = hand_targets(human, placement)
     settings = QPSettings(criteria=("SYN", "HJA_r"))
     terms = build_terms(robot, settings, learn(robot))
-    context = frames(robot, motion, targets, placement)
+    ref = human_reference(robot, motion, placement)
     q0 = hlik.retarget(motion, robot).q  # JM poses as the configurations stepped from
 
     data = mujoco.MjData(robot.model)
@@ -47,7 +47,7 @@ def main() -> None:
     limits = [mink.ConfigurationLimit(robot.model)]
 
     def hlik_step(k: int) -> None:
-        frame = Frame(**context[k], history=np.tile(q0[k], (3, 1)), dt=0.01)
+        frame = frame_at(ref, targets, k, np.tile(q0[k], (3, 1)), 0.01)
         step(robot, terms, q0[k], frame, settings, data)
 
     def mink_step(k: int) -> None:

@@ -101,8 +101,13 @@ def run(
         tag = "_".join((solver, *chosen))
         rrd = out or Path("recordings") / f"{path.stem}_{r.name}_{tag}.rrd"
         _check_writable(rrd, create=out is None)
-        columns = (SpinnerColumn(), TextColumn("{task.description}"), TimeElapsedColumn())
-        columns = (*columns[:2], BarColumn(), MofNCompleteColumn(), columns[2])
+        columns = (
+            SpinnerColumn(),
+            TextColumn("{task.description}"),
+            BarColumn(),
+            MofNCompleteColumn(),
+            TimeElapsedColumn(),
+        )
         with Progress(*columns, console=Console(stderr=True), transient=True) as progress:
             task = progress.add_task(f"reading {path.name}", total=None)
             m = load_motion(path, rate=rate or None)

@@ -13,7 +13,8 @@ from hlik.criteria import unified
 from hlik.criteria.eea import eea_cost, eea_r_target, eea_residual, forward_fill, swivel_angle
 from hlik.criteria.functional import position_error, relative_errors, rotation_angle
 from hlik.criteria.joints import human_limits, mapped_pose, mean_square, robot_limits
-from hlik.criteria.manipulability import human_manipulability, man_cost, man_residual
+from hlik.criteria.manipulability import man_cost, man_residual
+from hlik.criteria.reference import human_reference
 from hlik.criteria.smoothness import mje_cost
 from hlik.criteria.soechting import predict_arm, soa_q_residual, soa_q_targets, soa_x_cost, soa_x_residual
 from hlik.criteria.state import arm_lengths, robot_state
@@ -67,15 +68,13 @@ def costs(traj: Trajectory, robot: Robot, learned: Learned) -> dict[str, np.ndar
     """Criterion name -> (T,) cost h(t) of every criterion, functional ones included."""
     q, ref, syn = traj.q, traj.reference, learned.synergies
     state = robot_state(robot, q, jacobians=True)
-    human = ref.kinematics()
-    to_base = traj.placement.to_base
+    human = human_reference(robot, ref, traj.placement)
     h = {}
 
     psi = forward_fill(swivel_angle(state.shoulder, state.elbow, state.wrist))
     psi_human = learned.swivel.predict(state.shoulder, state.tcp, state.tcp_rot)
-    psi_mmm = forward_fill(swivel_angle(to_base(human.shoulder), to_base(human.elbow), to_base(human.wrist)))
     h["EEA"] = eea_cost(eea_residual(psi, psi_human))
-    h["EEA_r"] = eea_cost(eea_residual(psi, eea_r_target(psi, psi_human, psi_mmm)))
+    h["EEA_r"] = eea_cost(eea_residual(psi, eea_r_target(psi, psi_human, human.psi)))
 
     l_u, l_f = arm_lengths(robot)
     elbow_pred, angles = predict_arm(state.shoulder, state.wrist, l_u, l_f)
@@ -84,18 +83,13 @@ def costs(traj: Trajectory, robot: Robot, learned: Learned) -> dict[str, np.ndar
     h["SOA_q"] = mean_square(soa_q_residual(robot, state, idx, targets))
 
     h["HJL"] = mean_square(human_limits(robot).residual(q))
-    mapped = mapped_pose(robot, ref.joint_names, ref.joints)
-    h["HJA_r"] = mean_square(mapped.residual(q))
-    q_ref = q.copy()
-    q_ref[:, mapped.idx] = mapped.centre
+    h["HJA_r"] = mean_square(mapped_pose(robot, human.q_map).residual(q))
     h["SYN"] = mean_square(syn.syn_residual(q))
-    h["SYN_r"] = mean_square(syn.syn_r_residual(q, q_ref))
+    h["SYN_r"] = mean_square(syn.syn_r_residual(q, human.q_map))
     h["MIS"] = syn.mis_cost(velocities(q, float(np.median(np.diff(traj.times)))))
     h["MJE"] = mje_cost(robot, q)
 
-    rot = traj.placement.rotation
-    target_m = rot.T @ human_manipulability(ref) @ rot  # into the robot base frame
-    h["MAN_r"] = man_cost(man_residual(robot, state, target_m, learned.scale))
+    h["MAN_r"] = man_cost(man_residual(robot, state, human.manip, learned.scale))
 
     h["fJLA"] = mean_square(robot_limits(robot).residual(q))
     h["fPOS"] = position_error(traj.tcp_pos, traj.targets.pos).mean(axis=-1)

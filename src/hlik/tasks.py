@@ -45,6 +45,10 @@ class CriterionTask(mink.Task):
     def compute_jacobian(self, configuration: mink.Configuration) -> np.ndarray:
         return self._residual(configuration)[1]
 
+    def compute_qp_residual(self, configuration: mink.Configuration) -> tuple[np.ndarray, np.ndarray, float]:
+        # error and Jacobian from one kinematics pass (mink's default calls the two methods above)
+        return self._weighted_residual(*self._residual(configuration))
+
     def _residual(self, configuration: mink.Configuration) -> tuple[np.ndarray, np.ndarray]:
         if self.frame is None and self.term.needs_frame:
             raise mink.exceptions.TargetNotSet(type(self).__name__)

@@ -14,7 +14,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from hlik.criteria import eea, manipulability, soechting
-from hlik.criteria.joints import JointBand, human_limits
+from hlik.criteria.joints import JointBand, human_limits, mapped_pose
 from hlik.criteria.smoothness import ACCELERATION, JERK, VELOCITY
 from hlik.criteria.state import RobotState, arm_lengths
 from hlik.learned import Learned
@@ -108,8 +108,7 @@ class MappedPose(Term):
     sites = ()
 
     def __init__(self, robot: Robot):
-        idx = np.asarray(robot.index([m.joint for m in robot.mapping.joints]))
-        self.band = JointBand(idx, np.zeros(len(idx)), np.ones(len(idx)), ~np.isfinite(robot.lower[idx]))
+        self.band = mapped_pose(robot, robot.home)  # targets replaced per frame
         self._jac = self.band.jacobian(robot.dof)
 
     def __call__(self, state, frame):

@@ -47,13 +47,10 @@ def mean_square(residual: np.ndarray) -> np.ndarray:
     return np.mean(np.square(residual), axis=-1)
 
 
-def mapped_pose(robot: Robot, joint_names: tuple[str, ...], joints: np.ndarray) -> JointBand:
-    """HJA^r: the human pose mapped to the robot's arm joints (unclipped) as per-frame targets."""
-    mapped = robot.mapping.apply(joint_names, joints)
-    names = [m.joint for m in robot.mapping.joints]
-    idx = np.asarray(robot.index(names))
-    centre = np.stack([mapped[n] for n in names], axis=-1)
-    return JointBand(idx, centre, np.ones(len(idx)), _unlimited(robot, idx))
+def mapped_pose(robot: Robot, q_map: np.ndarray) -> JointBand:
+    """HJA^r: the mapped human pose (..., n) of the arm joints as targets."""
+    idx = np.asarray(robot.index([m.joint for m in robot.mapping.joints]))
+    return JointBand(idx, q_map[..., idx], np.ones(len(idx)), _unlimited(robot, idx))
 
 
 def human_limits(robot: Robot) -> JointBand:

@@ -11,22 +11,26 @@ from hlik.robot import Robot
 from hlik.targets import HandTargets
 
 
-def joint_mapping(
-    robot: Robot, motion: HumanMotion, targets: HandTargets | None = None, placement: Placement | None = None
-) -> np.ndarray:
-    """Map the MMM joint angles to the robot through its Table I mapping.
+def mapped_configuration(robot: Robot, motion: HumanMotion) -> np.ndarray:
+    """(T, n) the MMM joint angles mapped through the robot's Table I mapping, not clipped.
 
-    Joints the mapping does not cover (ARMAR-III's hip) stay at home; mapped angles are clipped
-    into the joint limits, as a robot controller would.
-
-    Returns:
-        (T, n) joint angles in ``robot.joint_names`` order.
+    Joints the mapping does not cover (ARMAR-III's hip) stay at home.
     """
     missing = [j for j in robot.mapping.mmm_joints if j not in motion.joint_names]
     if missing:
         raise MotionFormatError(motion.source, f"motion lacks MMM joint(s) {', '.join(missing)}")
-    mapped = robot.mapping.apply(motion.joint_names, motion.joints)
     q = np.tile(robot.home, (motion.n_frames, 1))
-    for name, angles in mapped.items():
+    for name, angles in robot.mapping.apply(motion.joint_names, motion.joints).items():
         q[:, robot.index(name)] = angles
-    return np.clip(q, robot.lower, robot.upper)
+    return q
+
+
+def joint_mapping(
+    robot: Robot, motion: HumanMotion, targets: HandTargets | None = None, placement: Placement | None = None
+) -> np.ndarray:
+    """JM: :func:`mapped_configuration` clipped into the joint limits, as a robot controller would.
+
+    Returns:
+        (T, n) joint angles in ``robot.joint_names`` order.
+    """
+    return np.clip(mapped_configuration(robot, motion), robot.lower, robot.upper)

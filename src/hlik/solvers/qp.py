@@ -18,15 +18,13 @@ import mujoco
 import numpy as np
 import qpsolvers
 
-from hlik.criteria.eea import forward_fill, swivel_angle
-from hlik.criteria.manipulability import human_manipulability
+from hlik.criteria.reference import HumanReference, human_reference
 from hlik.criteria.state import robot_state
 from hlik.criteria.unified import GAMMA
 from hlik.learned import Learned, learn
 from hlik.motion import HumanMotion
 from hlik.placement import Placement
 from hlik.robot import Robot
-from hlik.solvers.jm import joint_mapping
 from hlik.targets import HandTargets
 from hlik.terms import Frame, Pose, Term, criterion_term, smoothness_terms
 
@@ -73,26 +71,9 @@ def build_terms(robot: Robot, settings: QPSettings, learned: Learned | None) -> 
     return terms
 
 
-def frames(robot: Robot, motion: HumanMotion, targets: HandTargets, placement: Placement) -> list[dict]:
-    """Per-frame context arrays (everything in :class:`~hlik.terms.Frame` but the history)."""
-    mapped = robot.mapping.apply(motion.joint_names, motion.joints)
-    q_map = np.tile(robot.home, (motion.n_frames, 1))
-    for name, angles in mapped.items():
-        q_map[:, robot.index(name)] = angles
-    human = motion.kinematics()
-    psi = forward_fill(swivel_angle(human.shoulder, human.elbow, human.wrist))  # yaw-invariant
-    rot = placement.rotation
-    manip = rot.T @ human_manipulability(motion) @ rot
-    return [
-        {
-            "target_pos": targets.pos[k],
-            "target_rot": targets.rot[k],
-            "q_map": q_map[k],
-            "psi_mmm": psi[k],
-            "manip": manip[k],
-        }
-        for k in range(motion.n_frames)
-    ]
+def frame_at(ref: HumanReference, targets: HandTargets, k: int, history: np.ndarray, dt: float) -> Frame:
+    """The context of frame ``k``; ``history`` (3, n) holds the previous solutions, newest first."""
+    return Frame(targets.pos[k], targets.rot[k], ref.q_map[k], ref.psi[k], ref.manip[k], history, dt)
 
 
 def step(
@@ -109,9 +90,9 @@ def step(
     rows, errors = [], []
     for term in terms:
         e, jac = term(state, frame)
-        cost = term.cost if np.isscalar(term.cost) else np.asarray(term.cost)[:, None]
-        rows.append(cost * jac)
-        errors.append(np.ravel(cost) * e if not np.isscalar(cost) else cost * e)
+        w = np.asarray(term.cost)
+        rows.append(w[:, None] * jac if w.ndim else w * jac)
+        errors.append(w * e)
     a, b = np.vstack(rows), np.concatenate(errors)
     hessian = a.T @ a
     hessian[np.diag_indices_from(hessian)] += settings.damping
@@ -150,17 +131,15 @@ def solve(
     if settings.criteria and learned is None:
         learned = learn(robot)
     terms = build_terms(robot, settings, learned)
-    context = frames(robot, motion, targets, placement)
+    ref = human_reference(robot, motion, placement)
     dt = float(np.median(np.diff(motion.times))) if motion.n_frames > 1 else 0.01
-    q = np.clip(
-        joint_mapping(robot, motion.crop(0.0, 0.0)).reshape(-1)[: robot.dof], robot.lower, robot.upper
-    )
+    q = np.clip(ref.q_map[0], robot.lower, robot.upper)  # start from the mapped human pose (JM)
     history = np.tile(q, (3, 1))
     data = mujoco.MjData(robot.model)
     out = np.empty((motion.n_frames, robot.dof))
     steps = np.zeros(motion.n_frames, dtype=int)
-    for k, ctx in enumerate(context):
-        frame = Frame(**ctx, history=history, dt=dt)
+    for k in range(motion.n_frames):
+        frame = frame_at(ref, targets, k, history, dt)
         for it in range(settings.max_iter * (10 if k == 0 else 1)):
             dq = step(robot, terms, q, frame, settings, data)
             q = np.clip(q + dq, robot.lower, robot.upper)

@@ -1,0 +1,43 @@
+"""The human reference of each frame in the robot's terms: what the reference criteria compare to.
+
+HJA^r and SYN^r read the mapped human pose, EEA^r the human's elbow elevation, MAN^r the
+normalised human's manipulability (rotated into the robot base frame through the placement).
+Metrics (:mod:`hlik.metrics`) and the QP (:mod:`hlik.solvers.qp`) both take it from here.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from hlik.criteria.eea import forward_fill, swivel_angle
+from hlik.criteria.manipulability import human_manipulability
+from hlik.motion import HumanMotion
+from hlik.placement import Placement
+from hlik.robot import Robot
+from hlik.solvers.jm import mapped_configuration
+
+
+@dataclass(frozen=True, eq=False)
+class HumanReference:
+    """Attributes:
+    q_map: (T, n) the human pose mapped to the robot (unclipped; non-arm joints at home).
+    psi: (T, 2) the human's elbow elevation angles (last valid value where undefined).
+    manip: (T, 2, 3, 3) the normalised human's manipulability, robot base frame.
+    """
+
+    q_map: np.ndarray
+    psi: np.ndarray
+    manip: np.ndarray
+
+
+def human_reference(robot: Robot, motion: HumanMotion, placement: Placement) -> HumanReference:
+    """The reference of every frame of ``motion`` for ``robot`` placed at ``placement``."""
+    human = motion.kinematics()
+    rot = placement.rotation
+    return HumanReference(
+        q_map=mapped_configuration(robot, motion),
+        psi=forward_fill(swivel_angle(human.shoulder, human.elbow, human.wrist)),  # invariant to yaw
+        manip=rot.T @ human_manipulability(motion) @ rot,
+    )
