@@ -10,13 +10,13 @@ from __future__ import annotations
 
 import hashlib
 import os
-import tempfile
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from hlik.atomic import atomic_path
 from hlik.criteria.eea import SwivelPredictor
 from hlik.criteria.manipulability import scale_factor
 from hlik.criteria.synergy import Synergies, fit_synergies
@@ -138,14 +138,8 @@ def _save(learned: Learned, path: Path) -> None:
         **{f"syn.{k}": getattr(s, k) for k in Synergies.__dataclass_fields__},
     }
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as f:
-            np.savez(f, **arrays)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    with atomic_path(path) as tmp, open(tmp, "wb") as f:
+        np.savez(f, **arrays)
 
 
 def _load(path: Path) -> Learned:

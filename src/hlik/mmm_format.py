@@ -6,8 +6,6 @@ files are millimetres and are converted to metres here; nothing else in hlik see
 
 from __future__ import annotations
 
-import os
-import tempfile
 from collections.abc import Iterable
 from pathlib import Path
 from xml.etree.ElementTree import Element, ParseError
@@ -17,6 +15,7 @@ import numpy as np
 from defusedxml import DefusedXmlException
 from scipy.spatial.transform import Rotation
 
+from hlik.atomic import atomic_path
 from hlik.errors import MotionFormatError
 from hlik.motion import ARM_JOINTS, HumanMotion, ObjectMotion, _slerp
 
@@ -318,12 +317,5 @@ def _marker_sensor(times, markers) -> list[str]:
 
 
 def _atomic_write(path: Path, text: str) -> None:
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            f.write(text)
-        os.chmod(tmp, 0o644)  # mkstemp creates 0600; a motion file is an ordinary document
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    with atomic_path(path) as tmp:
+        tmp.write_text(text, encoding="utf-8")

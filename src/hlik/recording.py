@@ -19,8 +19,6 @@ Timelines: ``frame`` (index) and ``time`` (seconds). Everything time-varying goe
 
 from __future__ import annotations
 
-import os
-import tempfile
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -30,6 +28,7 @@ import rerun as rr
 import rerun.blueprint as rrb
 from scipy.spatial.transform import Rotation
 
+from hlik.atomic import atomic_path
 from hlik.criteria.functional import position_error, rotation_angle
 from hlik.fk import body_poses
 from hlik.human import human_model, qpos_trajectory
@@ -66,22 +65,15 @@ def write_recording(
     if layout not in LAYOUTS:
         raise ValueError(f"layout must be one of {LAYOUTS}, got {layout!r}")
     path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    os.close(fd)
-    rec = rr.RecordingStream(
-        "hlik", recording_id=f"{trajectory.reference.name}-{robot.name}-{trajectory.solver}"
-    )
-    try:
-        rec.set_log_time_enabled(False)
-        rec.save(tmp, default_blueprint=blueprint())
-        _log(rec, trajectory, robot, layout, metrics or {})
-        rec.disconnect()  # writes the footer; the file is complete only now
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, path)
-    except BaseException:
-        rec.disconnect()
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    recording_id = f"{trajectory.reference.name}-{robot.name}-{trajectory.solver}"
+    with atomic_path(path) as tmp:
+        rec = rr.RecordingStream("hlik", recording_id=recording_id)
+        try:
+            rec.set_log_time_enabled(False)
+            rec.save(tmp, default_blueprint=blueprint())
+            _log(rec, trajectory, robot, layout, metrics or {})
+        finally:
+            rec.disconnect()  # writes the footer; the file is complete only now
     return path
 
 

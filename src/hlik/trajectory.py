@@ -7,14 +7,13 @@ markers are dropped; objects are kept).
 
 from __future__ import annotations
 
-import os
-import tempfile
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from hlik.atomic import atomic_path
 from hlik.errors import TrajectoryFormatError
 from hlik.motion import HumanMotion, ObjectMotion
 from hlik.placement import Placement
@@ -58,15 +57,8 @@ class Trajectory:
         """Write to ``path`` (``.npz``) atomically: a failed write leaves no partial file."""
         path = Path(path)
         arrays = _to_arrays(self)
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-        try:
-            with os.fdopen(fd, "wb") as f:
-                np.savez_compressed(f, **arrays)
-            os.chmod(tmp, 0o644)
-            os.replace(tmp, path)
-        except BaseException:
-            Path(tmp).unlink(missing_ok=True)
-            raise
+        with atomic_path(path) as tmp, open(tmp, "wb") as f:
+            np.savez_compressed(f, **arrays)
         return path
 
 
