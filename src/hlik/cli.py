@@ -185,7 +185,7 @@ def evaluate(
     """Human-likeness criteria h_i and scores m_i, m_hl, m_f and m_hl,f of a trajectory."""
     import json
 
-    from hlik.criteria.unified import CRITERIA, FUNCTIONAL_X0, X0
+    from hlik.criteria.unified import midpoints
     from hlik.learned import learn
     from hlik.metrics import evaluate as evaluate_trajectory
     from hlik.robot import load_robot
@@ -201,9 +201,9 @@ def evaluate(
     if json_out:
         sys.stdout.write(json.dumps(ev.to_json(), indent=2) + "\n")
         return
-    x0 = {**X0, **FUNCTIONAL_X0[scenario]}
+    x0 = midpoints(scenario)
     table = Table("criterion", "mean h", "x0", "m", title=f"{trajectory.name}: {traj.robot}, {traj.solver}")
-    for k in (*CRITERIA, *FUNCTIONAL_X0[scenario]):
+    for k in x0:
         table.add_row(k, f"{ev.h[k].mean():.4g}", f"{x0[k]:g}", f"{ev.m[k]:.3f}")
     console.print(table)
     console.print(f"m_hl = {ev.m_hl:.3f}   m_f ({scenario}) = {ev.m_f:.3f}   m_hl,f = {ev.m_hl_f:.3f}")

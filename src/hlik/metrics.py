@@ -48,7 +48,7 @@ class Evaluation:
 
     def curves(self) -> dict[str, np.ndarray]:
         """Criterion name -> (T,) per-frame score f_x0(h_i(t)), the curves m_i averages."""
-        x0 = {**unified.X0, **unified.FUNCTIONAL_X0[self.scenario]}
+        x0 = unified.midpoints(self.scenario)
         return {k: unified.logistic(self.h[k], x0[k]) for k in self.m}
 
     def to_json(self) -> dict:
@@ -107,7 +107,7 @@ def evaluate(
     if scenario not in unified.FUNCTIONAL_X0:
         raise ValueError(f"scenario must be one of {tuple(unified.FUNCTIONAL_X0)}, got {scenario!r}")
     h = costs(traj, robot, learned)
-    x0 = {**unified.X0, **unified.FUNCTIONAL_X0[scenario]}
+    x0 = unified.midpoints(scenario)
     m = {k: unified.score(h[k], x0[k]) for k in x0}
     m_hl, m_f = unified.hierarchical(m), unified.functional(m, scenario)
     return Evaluation(

@@ -36,6 +36,11 @@ FUNCTIONAL_X0: Mapping[str, Mapping[str, float]] = MappingProxyType(
 ALPHA = 0.5
 
 
+def midpoints(scenario: str = "pose") -> dict[str, float]:
+    """x0 of every criterion scored in ``scenario``: the 11 of Table III, then the functional ones."""
+    return {**X0, **FUNCTIONAL_X0[scenario]}
+
+
 def logistic(x: np.ndarray, x0: float) -> np.ndarray:
     """Eq. 1's f_x0(x) = 1 / (1 + exp(5 (x - x0) / x0)): 1 at 0, 0.5 at x0, ~0 at 2 x0."""
     z = np.clip(5.0 * (np.asarray(x, dtype=float) - x0) / x0, -700.0, 700.0)
