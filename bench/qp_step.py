@@ -19,7 +19,7 @@ from hlik.criteria.reference import human_reference
 from hlik.learned import learn
 from hlik.paths import demo_motion_path
 from hlik.placement import shoulder_placement
-from hlik.solvers.qp import QPSettings, build_terms, frame_at, step
+from hlik.solvers.qp import Assembly, QPSettings, build_terms, frame_at, step
 from hlik.targets import hand_targets
 
 REPEATS = 5
@@ -32,7 +32,7 @@ def main() -> None:
     placement = shoulder_placement(robot, human)
     targets = hand_targets(human, placement)
     settings = QPSettings(criteria=("SYN", "HJA_r"))
-    terms = build_terms(robot, settings, learn(robot))
+    terms = Assembly(build_terms(robot, settings, learn(robot)), robot.dof, settings.damping)
     ref = human_reference(robot, motion, placement)
     q0 = hlik.retarget(motion, robot).q  # JM poses as the configurations stepped from
 

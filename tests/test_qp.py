@@ -18,7 +18,14 @@ from hlik.placement import shoulder_placement
 from hlik.solvers.qp import QPSettings, qp_solver, solve
 from hlik.targets import HandTargets, hand_targets
 from hlik.tasks import CriterionTask, HumanJointLimit
-from hlik.terms import Frame, Pose, rotation_vector
+from hlik.terms import (
+    Frame,
+    Orientation,
+    Position,
+    RelativeOrientation,
+    RelativePosition,
+    rotation_vector,
+)
 
 ROBOTS = ("armar3", "armar6", "dual_panda")
 
@@ -52,26 +59,38 @@ def test_criteria_work_inside_plain_mink(robot):
     assert np.all(config.q >= r.lower - 1e-6) and np.all(config.q <= r.upper + 1e-6)
 
 
-def test_rotation_vector_and_pose_jacobian():
-    rng = np.random.default_rng(5)
+TARGET_TERMS = (Position, Orientation, RelativePosition, RelativeOrientation)
+
+
+def _fd(fun, q, eps=1e-6):
+    return np.stack([(fun(q + d) - fun(q - d)) / (2 * eps) for d in eps * np.eye(len(q))], axis=-1)
+
+
+def test_rotation_vector():
     from scipy.spatial.transform import Rotation
 
-    rot = Rotation.random(20, random_state=rng)
+    rot = Rotation.random(20, random_state=np.random.default_rng(5))
     np.testing.assert_allclose(rotation_vector(rot.as_matrix()), rot.as_rotvec(), atol=1e-9)
-    r = load_robot("armar6")
+
+
+@pytest.mark.parametrize("term", TARGET_TERMS, ids=lambda t: t.__name__)
+@pytest.mark.parametrize("name", ["armar3", "armar6", "dual_panda"])
+def test_target_term_jacobians(term, name):
+    """At the target e = 0 and J = de/dq (the rotation-vector Jacobian is exact there); away from
+    it, the gradient of h(e) is exact everywhere."""
+    rng = np.random.default_rng(6)
+    r = load_robot(name)
     q = np.clip(r.home + rng.normal(0, 0.2, r.dof), r.lower, r.upper)
-    frame = _frame(r, q)  # at the target the rotation-vector Jacobian is the angular Jacobian
-    e0, jac = Pose()(robot_state(r, q, jacobians=True), frame)
+    t = term()
+    residual = lambda x, f: t(robot_state(r, x, True), f)[0]  # noqa: E731
+    at_target = _frame(r, q)
+    e0, jac = t(robot_state(r, q, jacobians=True), at_target)
     np.testing.assert_allclose(e0, 0.0, atol=1e-9)
-    fd = np.stack(
-        [
-            (Pose()(robot_state(r, q + d, True), frame)[0] - Pose()(robot_state(r, q - d, True), frame)[0])
-            / 2e-6
-            for d in 1e-6 * np.eye(r.dof)
-        ],
-        axis=-1,
-    )
-    np.testing.assert_allclose(fd, jac, atol=1e-5)
+    np.testing.assert_allclose(_fd(lambda x: residual(x, at_target), q), jac, atol=1e-5)
+    away = _frame(r, np.clip(q + rng.normal(0, 0.3, r.dof), r.lower, r.upper))
+    _, grad = t.gradient(robot_state(r, q, jacobians=True), away)
+    cost = lambda x: np.array([t.gradient(robot_state(r, x, True), away)[0]])  # noqa: E731
+    np.testing.assert_allclose(_fd(cost, q)[0], grad, atol=1e-6)
 
 
 @pytest.mark.parametrize("robot", ROBOTS)
@@ -126,6 +145,6 @@ def test_cli_qp_with_criteria(takes, tmp_path):
     assert result.exit_code == 0, result.output
     assert out.is_file() and "fPOS mean" in result.stdout
     bad = CliRunner().invoke(app, ["run", "--criteria", "SYN"])
-    assert bad.exit_code == 2 and "--criteria needs --solver qp" in bad.stderr
+    assert bad.exit_code == 2 and "jm maps joints and cannot add criteria" in bad.stderr
     bad = CliRunner().invoke(app, ["run", "--solver", "qp", "--criteria", "NOPE"])
     assert bad.exit_code == 2 and "unknown criteria NOPE" in bad.stderr

@@ -48,7 +48,9 @@ def _fail(err: HlikError) -> None:
 def run(
     motion: MotionArg = None,
     robot: Annotated[str, typer.Option("--robot", "-r", help="Robot name (see `hlik robots`).")] = "armar6",
-    solver: Annotated[str, typer.Option("--solver", "-s", help="Retargeting solver: jm or qp.")] = "jm",
+    solver: Annotated[
+        str, typer.Option("--solver", "-s", help="Retargeting solver: jm, jv, qp or slsqp.")
+    ] = "jm",
     out: Annotated[
         Path | None,
         typer.Option("--out", "-o", help="Output .rrd (default: recordings/<motion>_<robot>_<solver>.rrd)."),
@@ -58,10 +60,20 @@ def run(
         str, typer.Option(help="side: robot beside the human; overlay: on the human.")
     ] = "side",
     corpus: CorpusOpt = None,
-    scenario: ScenarioOpt = "pose",
+    stack: Annotated[
+        str,
+        typer.Option(help="Task stack: a .toml file, or a bundled one (ee_pose, relative_pose)."),
+    ] = "ee_pose",
     criteria: Annotated[
-        str, typer.Option(help="qp: comma-separated human-likeness criteria to add, e.g. SYN,HJA_r.")
-    ] = "",
+        str | None,
+        typer.Option(
+            help="Human-likeness criteria to add (jv, qp, slsqp), e.g. SYN,HJA_r; replaces the stack's."
+        ),
+    ] = None,
+    scenario: Annotated[
+        str | None,
+        typer.Option(help="Functional score: pose or relative (default: the stack's scenario)."),
+    ] = None,
 ) -> None:
     """Retarget a motion to a robot; write a Rerun recording and the trajectory (.npz) beside it."""
     from rich.progress import (
@@ -73,32 +85,34 @@ def run(
         TimeElapsedColumn,
     )
 
-    from hlik.criteria.unified import CRITERIA
     from hlik.learned import learn
     from hlik.metrics import evaluate as evaluate_trajectory
     from hlik.motion import load_motion
     from hlik.recording import LAYOUTS, write_recording
     from hlik.retarget import retarget
     from hlik.robot import load_robot
-    from hlik.solvers import SOLVER_NAMES
+    from hlik.solvers import SOLVER_NAMES, get_solver
+    from hlik.stack import load_stack
 
     path = motion or demo_motion_path()
     try:
         if solver not in SOLVER_NAMES:
             raise HlikError(f"unknown solver {solver!r}; choose one of: {', '.join(SOLVER_NAMES)}")
-        chosen = tuple(c.strip() for c in criteria.split(",") if c.strip())
-        unknown = [c for c in chosen if c not in CRITERIA]
-        if unknown:
-            raise HlikError(f"unknown criteria {', '.join(unknown)}; choose from: {', '.join(CRITERIA)}")
-        if chosen and solver != "qp":
-            raise HlikError("--criteria needs --solver qp")
+        task_stack = load_stack(stack)
+        if criteria is not None:
+            task_stack = task_stack.with_criteria([c.strip() for c in criteria.split(",") if c.strip()])
+        chosen = task_stack.criteria
+        if chosen and solver == "jm":
+            raise HlikError("jm maps joints and cannot add criteria; choose --solver jv, qp or slsqp")
+        scenario = scenario or task_stack.scenario
         if layout not in LAYOUTS:
             raise HlikError(f"unknown layout {layout!r}; choose one of: {', '.join(LAYOUTS)}")
         _check_scenario(scenario)
         if rate < 0:
             raise HlikError(f"--rate must be positive (or 0 to keep the motion's rate), got {rate:g}")
         r = load_robot(robot)
-        tag = "_".join((solver, *chosen))
+        named = () if task_stack.name == "ee_pose" else (task_stack.name,)
+        tag = "_".join((solver, *named, *chosen))
         rrd = out or Path("recordings") / f"{path.stem}_{r.name}_{tag}.rrd"
         _check_writable(rrd, create=out is None)
         columns = (
@@ -116,13 +130,10 @@ def run(
                 task, description=f"retargeting to {r.title} ({tag})", total=m.n_frames, completed=0
             )
             start = time.perf_counter()
-            if solver == "qp":
-                from hlik.solvers.qp import QPSettings, qp_solver
-
-                step = lambda k: progress.update(task, completed=k + 1)  # noqa: E731
-                traj = retarget(m, r, qp_solver(QPSettings(criteria=chosen), learned, progress=step))
-            else:
-                traj = retarget(m, r, solver)
+            step = lambda k: progress.update(task, completed=k + 1)  # noqa: E731
+            settings = None if solver == "jm" else task_stack.settings(solver)
+            # jm by name: the trajectory records the solver's name
+            traj = retarget(m, r, solver if solver == "jm" else get_solver(solver, settings, learned, step))
             progress.update(task, completed=m.n_frames)
             solve_time = time.perf_counter() - start
             progress.update(task, description="evaluating the criteria")
@@ -155,7 +166,7 @@ def _check_writable(path: Path, create: bool) -> None:
 
 
 def _run_summary(title: str, traj, motion, solve_time: float, rrd: Path, npz: Path) -> Table:
-    from hlik.criteria.functional import position_error, rotation_angle
+    from hlik.criteria.functional import position_error, relative_errors, rotation_angle
 
     fpos = position_error(traj.tcp_pos, traj.targets.pos)
     fori = rotation_angle(traj.tcp_rot, traj.targets.rot)
@@ -170,6 +181,11 @@ def _run_summary(title: str, traj, motion, solve_time: float, rrd: Path, npz: Pa
             f"fPOS mean {100 * fpos[:, i].mean():.1f} cm, max {100 * fpos[:, i].max():.1f} cm; "
             f"fORI mean {np.degrees(fori[:, i].mean()):.1f}°, max {np.degrees(fori[:, i].max()):.1f}°",
         )
+    off_pos, off_rot = relative_errors(traj.tcp_pos, traj.tcp_rot, traj.targets.pos, traj.targets.rot)
+    table.add_row(
+        "hands relative",
+        f"fPOS_off mean {100 * off_pos.mean():.1f} cm, fORI_off mean {np.degrees(off_rot.mean()):.1f}°",
+    )
     table.add_row("recording", f"{rrd}  (open with: rerun {rrd})")
     table.add_row("trajectory", str(npz))
     return table

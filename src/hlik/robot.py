@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import sys
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 
 import mujoco
@@ -69,6 +70,11 @@ class Robot:
     def site_id(self, side: str, site: str) -> int:
         """MuJoCo id of ``{side}_{site}`` (site in shoulder, elbow, wrist, tcp)."""
         return self.model.site(f"{side}_{site}").id
+
+    @cached_property
+    def site_ids(self) -> np.ndarray:
+        """(2, 4) MuJoCo ids of the sites, arms in :data:`SIDES` order, sites in :data:`SITES` order."""
+        return np.array([[self.site_id(side, site) for site in SITES] for side in SIDES])
 
     def __repr__(self) -> str:
         arms = "+".join(str(len(self.arm_joints[s])) for s in SIDES)

@@ -45,47 +45,124 @@ class Frame:
 
 
 class Term:
-    """A residual with its Jacobian; ``cost`` weighs it in the QP (scalar or per row)."""
+    """A residual e(q) with its Jacobian, and the scalar cost h(e) the metric of the same name uses.
+
+    ``cost`` weighs the residual in the QP (scalar or per row). :meth:`metric` maps e to h (a mean of
+    squares unless a subclass says otherwise); :meth:`gradient` chains it with the Jacobian, which is
+    what the null-space (JV) and SLSQP solvers need.
+    """
 
     name = "term"
     cost: float | np.ndarray = 1.0
     needs_frame = True  # False: the residual depends on the configuration alone
     sites: tuple[int, ...] = (0, 1, 2, 3)  # site Jacobians it reads (indices into SITES)
+    constant_jacobian: np.ndarray | None = None  # set when J depends on neither q nor the frame
 
     def __call__(self, state: RobotState, frame: Frame) -> tuple[np.ndarray, np.ndarray]:
         raise NotImplementedError
 
+    def metric(self, e: np.ndarray) -> tuple[float, np.ndarray]:
+        """The cost h of residual ``e`` (m,) and dh/de (m,)."""
+        return float(np.mean(e * e)), 2.0 * e / max(len(e), 1)
 
-class Pose(Term):
-    """Both TCPs to their targets: position error (m) and rotation vector of R R*^T (rad)."""
+    def gradient(self, state: RobotState, frame: Frame) -> tuple[float, np.ndarray]:
+        """The cost h at ``state`` and its gradient dh/dq (n,)."""
+        e, jac = self(state, frame)
+        h, dh_de = self.metric(e)
+        return h, dh_de @ jac
 
-    name = "pose"
+
+def block_norms(e: np.ndarray, blocks: int) -> tuple[float, np.ndarray]:
+    """Mean of the norms of ``blocks`` equal slices of ``e``, and its gradient (zero at zero)."""
+    parts = e.reshape(blocks, -1)
+    norms = np.linalg.norm(parts, axis=1)
+    grad = parts / np.maximum(norms, 1e-12)[:, None] / blocks
+    return float(norms.mean()), grad.ravel()
+
+
+class Position(Term):
+    """Both TCPs to their target positions (m); h is fPOS, the mean distance."""
+
+    name = "position"
     sites = (3,)
 
-    def __init__(self, position_cost: float = 1.0, orientation_cost: float = 0.2):
-        self.cost = np.tile(np.r_[np.full(3, position_cost), np.full(3, orientation_cost)], 2)
+    def __call__(self, state, frame):
+        return (state.tcp[0] - frame.target_pos).ravel(), state.jac[0, :, 3, :3].reshape(6, -1)
+
+    def metric(self, e):
+        return block_norms(e, 2)
+
+
+class Orientation(Term):
+    """Both TCPs to their target orientations: rotation vectors of R R*^T (rad); h is fORI."""
+
+    name = "orientation"
+    sites = (3,)
 
     def __call__(self, state, frame):
-        pos_err = state.tcp[0] - frame.target_pos
-        rot_err = rotation_vector(state.tcp_rot[0] @ np.swapaxes(frame.target_rot, -1, -2))
-        e = np.concatenate([np.r_[pos_err[i], rot_err[i]] for i in range(2)])
-        # Jacobian of the world-frame rotation vector: the angular Jacobian (first order).
-        jac = state.jac[0, :, 3].reshape(12, -1)
-        return e, jac
+        err = rotation_vector(state.tcp_rot[0] @ np.swapaxes(frame.target_rot, -1, -2))
+        # Jacobian of the world-frame rotation vector: the angular Jacobian (first order)
+        return err.ravel(), state.jac[0, :, 3, 3:].reshape(6, -1)
+
+    def metric(self, e):
+        return block_norms(e, 2)
+
+
+def relative_target(frame: Frame) -> tuple[np.ndarray, np.ndarray]:
+    """The targets' right hand seen from their left hand: position (3,) and rotation (3, 3)."""
+    rot_l = frame.target_rot[0]
+    return rot_l.T @ (frame.target_pos[1] - frame.target_pos[0]), rot_l.T @ frame.target_rot[1]
+
+
+class RelativePosition(Term):
+    """Paper Eq. 3: t_left + R_left t_rel - t_right (m); h is fPOS^off."""
+
+    name = "relative_position"
+    sites = (3,)
+
+    def __call__(self, state, frame):
+        rel_pos, _ = relative_target(frame)
+        offset = state.tcp_rot[0, 0] @ rel_pos
+        e = state.tcp[0, 0] + offset - state.tcp[0, 1]
+        jac = state.jac[0, :, 3]  # (2, 6, n)
+        # d(R_l t_rel) = omega_l x (R_l t_rel) = -[R_l t_rel]x omega_l
+        return e, jac[0, :3] - _skew(offset) @ jac[0, 3:] - jac[1, :3]
+
+    def metric(self, e):
+        return block_norms(e, 1)
+
+
+class RelativeOrientation(Term):
+    """Paper Eq. 4: rotation vector of (R_left R_rel) R_right^T (rad); h is fORI^off."""
+
+    name = "relative_orientation"
+    sites = (3,)
+
+    def __call__(self, state, frame):
+        _, rel_rot = relative_target(frame)
+        e = rotation_vector(state.tcp_rot[0, 0] @ rel_rot @ state.tcp_rot[0, 1].T)
+        jac = state.jac[0, :, 3, 3:]
+        return e, jac[0] - jac[1]
+
+    def metric(self, e):
+        return block_norms(e, 1)
+
+
+def _skew(v: np.ndarray) -> np.ndarray:
+    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
 
 
 def rotation_vector(rot: np.ndarray) -> np.ndarray:
     """(..., 3) axis * angle of rotations (..., 3, 3); closed form, scipy only near pi."""
-    axis = np.stack(
-        [rot[..., 2, 1] - rot[..., 1, 2], rot[..., 0, 2] - rot[..., 2, 0], rot[..., 1, 0] - rot[..., 0, 1]],
-        -1,
-    )
-    sin2 = np.linalg.norm(axis, axis=-1)  # 2 sin(angle)
-    angle = np.arctan2(sin2, np.trace(rot, axis1=-2, axis2=-1) - 1.0)
-    if np.any(angle > np.pi - 1e-3):
+    axis = rot[..., _ROWS, _COLS] - rot[..., _COLS, _ROWS]  # 2 sin(angle) * unit axis
+    sin2 = np.sqrt(np.sum(axis * axis, axis=-1))
+    angle = np.arctan2(sin2, rot[..., 0, 0] + rot[..., 1, 1] + rot[..., 2, 2] - 1.0)
+    if np.max(angle) > np.pi - 1e-3:
         return Rotation.from_matrix(rot).as_rotvec()
-    scale = np.where(sin2 > 1e-12, angle / np.maximum(sin2, 1e-300), 0.5)
-    return axis * scale[..., None]
+    return axis * np.where(sin2 > 1e-12, angle / np.maximum(sin2, 1e-300), 0.5)[..., None]
+
+
+_ROWS, _COLS = (2, 0, 1), (1, 2, 0)
 
 
 class Joints(Term):
@@ -95,10 +172,10 @@ class Joints(Term):
     sites = ()
 
     def __init__(self, name: str, band: JointBand, n: int):
-        self.name, self.band, self._jac = name, band, band.jacobian(n)
+        self.name, self.band, self.constant_jacobian = name, band, band.jacobian(n)
 
     def __call__(self, state, frame):
-        return self.band.residual(state.q)[0], self._jac
+        return self.band.residual(state.q)[0], self.constant_jacobian
 
 
 class MappedPose(Term):
@@ -109,11 +186,11 @@ class MappedPose(Term):
 
     def __init__(self, robot: Robot):
         self.band = mapped_pose(robot, robot.home)  # targets replaced per frame
-        self._jac = self.band.jacobian(robot.dof)
+        self.constant_jacobian = self.band.jacobian(robot.dof)
 
     def __call__(self, state, frame):
         band = JointBand(self.band.idx, frame.q_map[self.band.idx], self.band.half, self.band.unlimited)
-        return band.residual(state.q)[0], self._jac
+        return band.residual(state.q)[0], self.constant_jacobian
 
 
 class Synergy(Term):
@@ -124,12 +201,12 @@ class Synergy(Term):
     def __init__(self, learned: Learned, n: int, reference: bool):
         self.name = "SYN_r" if reference else "SYN"
         self.syn, self.reference, self.needs_frame = learned.synergies, reference, reference
-        self._jac = self.syn.syn_r_jacobian(n) if reference else self.syn.syn_jacobian(n)
+        self.constant_jacobian = self.syn.syn_r_jacobian(n) if reference else self.syn.syn_jacobian(n)
 
     def __call__(self, state, frame):
         if self.reference:
-            return self.syn.syn_r_residual(state.q, frame.q_map[None])[0], self._jac
-        return self.syn.syn_residual(state.q)[0], self._jac
+            return self.syn.syn_r_residual(state.q, frame.q_map[None])[0], self.constant_jacobian
+        return self.syn.syn_residual(state.q)[0], self.constant_jacobian
 
 
 class Misalignment(Term):
@@ -154,10 +231,13 @@ class Smooth(Term):
     sites = ()
 
     def __init__(self, name: str, stencil: np.ndarray, n: int):
-        self.name, self.stencil, self._jac = name, stencil, np.eye(n)
+        self.name, self.stencil, self.constant_jacobian = name, stencil, np.eye(n)
 
     def __call__(self, state, frame):
-        return state.q[0] + self.stencil[1:] @ frame.history, self._jac
+        return state.q[0] + self.stencil[1:] @ frame.history, self.constant_jacobian
+
+    def metric(self, e):
+        return block_norms(e, 1)  # RelaxedIK's ||q - extrapolation||
 
 
 class Elevation(Term):
@@ -175,6 +255,9 @@ class Elevation(Term):
         jac = eea.swivel_jacobian(state)[0] / np.pi
         e = eea.eea_residual(psi, target)
         return np.nan_to_num(e), np.where(np.isfinite(e)[:, None], jac, 0.0)
+
+    def metric(self, e):
+        return float(np.mean(np.abs(e))), np.sign(e) / len(e)  # eea_cost
 
 
 class Soechting(Term):
@@ -194,6 +277,9 @@ class Soechting(Term):
         e = soechting.soa_x_residual(state, elbow, self.l_u)[0].ravel()
         return e, soechting.soa_x_jacobian(state, self.l_u)[0].reshape(6, -1)
 
+    def metric(self, e):
+        return block_norms(e, 2) if not self.joints else super().metric(e)  # soa_x_cost per arm
+
 
 class Manipulability(Term):
     """MAN^r: the robot's scaled manipulability toward the normalised human's (Mandel log residual)."""
@@ -209,6 +295,9 @@ class Manipulability(Term):
         e = manipulability.man_residual(self.robot, state, target, self.scale)[0].ravel()
         jac = manipulability.man_jacobian(self.robot, state, target, self.scale)[0]
         return e, jac.reshape(-1, jac.shape[-1])
+
+    def metric(self, e):
+        return block_norms(e, 2)  # man_cost: mean over arms of the Mandel residual norm
 
 
 def criterion_term(name: str, robot: Robot, learned: Learned) -> Term:

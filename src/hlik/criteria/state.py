@@ -10,7 +10,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from hlik.robot import SIDES, SITES, Robot
+from hlik.robot import SITES, Robot
 
 
 @dataclass(frozen=True, eq=False)
@@ -63,7 +63,7 @@ def robot_state(
     q = np.atleast_2d(np.asarray(q, dtype=float))
     model = robot.model
     data = mujoco.MjData(model) if data is None else data
-    ids = np.array([[robot.site_id(s, n) for n in SITES] for s in SIDES])
+    ids = robot.site_ids
     flat = ids.ravel()
     sites = np.empty((len(q), 2, len(SITES), 3))
     rot = np.empty((len(q), 2, 3, 3))

@@ -1,15 +1,23 @@
 """Retargeting solvers: ``(robot, motion, targets, placement) -> joint angles (T, n)``.
 
 :func:`hlik.retarget.retarget` wraps any of them into a :class:`hlik.trajectory.Trajectory`.
-Solvers are imported on demand: ``qp`` needs the learned criteria, which need ``jm``.
+
+- ``jm``: the paper's joint mapping (Table I), clipped to the limits.
+- ``jv``: the paper's Jacobian velocity controller, criteria in the null space (baseline).
+- ``qp``: a stack of convex QPs per frame, criteria as least-squares tasks (mink + daqp).
+- ``slsqp``: the paper's OPT, RelaxedIK groove losses with NLopt's SLSQP and analytic gradients.
+
+Solvers are imported on demand: the optimising ones need the learned criteria.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
+from importlib import import_module
 
 import numpy as np
 
+from hlik.learned import Learned
 from hlik.motion import HumanMotion
 from hlik.placement import Placement
 from hlik.robot import Robot
@@ -17,17 +25,29 @@ from hlik.targets import HandTargets
 
 Solver = Callable[[Robot, HumanMotion, HandTargets, Placement], np.ndarray]
 
-SOLVER_NAMES = ("jm", "qp")
+SOLVER_NAMES = ("jm", "jv", "qp", "slsqp")
 
 
-def get_solver(name: str) -> Solver:
-    """The solver called ``name`` with its default settings."""
+def get_solver(
+    name: str,
+    settings: object | None = None,
+    learned: Learned | None = None,
+    progress: Callable[[int], None] | None = None,
+) -> Solver:
+    """The solver called ``name``, with ``settings`` (its settings class; default: the defaults).
+
+    ``learned`` supplies the learned criteria (learned on demand otherwise); ``progress(k)`` is
+    called after each frame ``k``.
+    """
     if name == "jm":
         from hlik.solvers.jm import joint_mapping
 
         return joint_mapping
-    if name == "qp":
-        from hlik.solvers.qp import qp_solver
-
-        return qp_solver()
-    raise KeyError(name)
+    if name not in SOLVER_NAMES:
+        raise KeyError(name)
+    factory = getattr(import_module(f"hlik.solvers.{name}"), f"{name}_solver")
+    return (
+        factory(settings, learned, progress)
+        if settings is not None
+        else factory(learned=learned, progress=progress)
+    )

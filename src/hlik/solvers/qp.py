@@ -10,8 +10,8 @@ previous solution; a frame stops when the step is below ``tol`` or after ``max_i
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
 
 import daqp
 import mujoco
@@ -26,7 +26,16 @@ from hlik.motion import HumanMotion
 from hlik.placement import Placement
 from hlik.robot import Robot
 from hlik.targets import HandTargets
-from hlik.terms import Frame, Pose, Term, criterion_term, smoothness_terms
+from hlik.terms import (
+    Frame,
+    Orientation,
+    Position,
+    RelativeOrientation,
+    RelativePosition,
+    Term,
+    criterion_term,
+    smoothness_terms,
+)
 
 
 @dataclass(frozen=True)
@@ -35,9 +44,13 @@ class QPSettings:
 
     Attributes:
         criteria: Human-likeness criteria added to the stack (paper names).
-        position_cost, orientation_cost: Pose term weights, per metre and per radian.
+        scenario: ``pose`` tracks both TCP poses; ``relative`` tracks the relative pose of the hands
+            (paper Eqs. 3-4) and the TCP poses only at the first frame (Sec. V-B).
+        position_cost, orientation_cost: TCP pose term weights, per metre and per radian.
+        relative_position_cost, relative_orientation_cost: Relative pose weights (``relative``).
+        gamma: Criterion name -> scaling weight (Table II; 1 where absent).
         criterion_cost: Base weight of a criterion; each gets ``gamma_i * criterion_cost / len(criteria)``
-            (Table II's gamma, divided by the number of criteria as in the paper).
+            (divided by the number of criteria as in the paper).
         velocity, acceleration, jerk: Weights of the smoothness terms.
         damping: Levenberg-Marquardt damping of every step.
         max_iter: QP steps per frame at most (the first frame gets ten times more).
@@ -47,8 +60,12 @@ class QPSettings:
     """
 
     criteria: tuple[str, ...] = ()
+    scenario: str = "pose"
+    gamma: Mapping[str, float] = field(default_factory=lambda: GAMMA)
     position_cost: float = 10.0
     orientation_cost: float = 2.0
+    relative_position_cost: float = 10.0
+    relative_orientation_cost: float = 2.0
     criterion_cost: float = 0.05
     velocity: float = 0.02
     acceleration: float = 0.01
@@ -60,15 +77,34 @@ class QPSettings:
     solver: str = "daqp"
 
 
-def build_terms(robot: Robot, settings: QPSettings, learned: Learned | None) -> list[Term]:
-    """The stack of ``settings`` for ``robot``: pose, smoothness, criteria with their weights."""
-    terms: list[Term] = [Pose(settings.position_cost, settings.orientation_cost)]
+def build_terms(
+    robot: Robot, settings: QPSettings, learned: Learned | None, scenario: str | None = None
+) -> list[Term]:
+    """The stack of ``settings`` for ``robot``: targets, smoothness, criteria with their weights.
+
+    ``scenario`` overrides ``settings.scenario`` (the first frame of ``relative`` uses ``pose``).
+    """
+    if (scenario or settings.scenario) == "relative":
+        terms = target_terms(
+            RelativePosition(),
+            RelativeOrientation(),
+            settings.relative_position_cost,
+            settings.relative_orientation_cost,
+        )
+    else:
+        terms = target_terms(Position(), Orientation(), settings.position_cost, settings.orientation_cost)
     terms += smoothness_terms(robot.dof, settings.velocity, settings.acceleration, settings.jerk)
     for name in settings.criteria:
         term = criterion_term(name, robot, learned)
-        term.cost = GAMMA.get(name, 1.0) * settings.criterion_cost / len(settings.criteria)
+        term.cost = settings.gamma.get(name, 1.0) * settings.criterion_cost / len(settings.criteria)
         terms.append(term)
     return terms
+
+
+def target_terms(position: Term, orientation: Term, position_cost: float, orientation_cost: float):
+    """The target terms with non-zero cost."""
+    position.cost, orientation.cost = position_cost, orientation_cost
+    return [t for t in (position, orientation) if t.cost > 0]
 
 
 def frame_at(ref: HumanReference, targets: HandTargets, k: int, history: np.ndarray, dt: float) -> Frame:
@@ -76,29 +112,54 @@ def frame_at(ref: HumanReference, targets: HandTargets, k: int, history: np.ndar
     return Frame(targets.pos[k], targets.rot[k], ref.q_map[k], ref.psi[k], ref.manip[k], history, dt)
 
 
+class Assembly:
+    """A stack prepared for repeated QP steps.
+
+    Terms with a constant Jacobian contribute a constant ``J^T W^2 J`` to the Hessian, summed once
+    here; per step they only add ``J^T W^2 e`` to the gradient. The other terms are stacked.
+    """
+
+    def __init__(self, terms: Sequence[Term], n: int, damping: float):
+        self.terms = tuple(terms)
+        self.sites = tuple(sorted({i for term in terms for i in term.sites}))
+        self.hessian = damping * np.eye(n)
+        self.weights, self.gradient_maps = [], []
+        for term in self.terms:
+            w = np.asarray(term.cost, dtype=float)
+            jac = term.constant_jacobian
+            self.weights.append(w[:, None] if w.ndim else w)
+            self.gradient_maps.append(None if jac is None else (np.square(self.weights[-1]) * jac).T)
+            if jac is not None:
+                self.hessian += self.gradient_maps[-1] @ jac
+
+
 def step(
     robot: Robot,
-    terms: Sequence[Term],
+    stack: Assembly,
     q: np.ndarray,
     frame: Frame,
     settings: QPSettings,
     data: mujoco.MjData | None = None,
 ) -> np.ndarray:
     """One QP step from ``q`` (n,): the joint change dq (n,). Reuse ``data`` across steps."""
-    sites = tuple(sorted({i for term in terms for i in term.sites}))
-    state = robot_state(robot, q, jacobians=bool(sites), data=data, jacobian_sites=sites)
+    state = robot_state(robot, q, jacobians=bool(stack.sites), data=data, jacobian_sites=stack.sites)
+    gradient = np.zeros(robot.dof)
     rows, errors = [], []
-    for term in terms:
+    for term, w, gradient_map in zip(stack.terms, stack.weights, stack.gradient_maps):
         e, jac = term(state, frame)
-        w = np.asarray(term.cost)
-        rows.append(w[:, None] * jac if w.ndim else w * jac)
-        errors.append(w * e)
-    a, b = np.vstack(rows), np.concatenate(errors)
-    hessian = a.T @ a
-    hessian[np.diag_indices_from(hessian)] += settings.damping
+        if gradient_map is not None:
+            gradient += gradient_map @ e
+        else:
+            rows.append(w * jac)
+            errors.append(w.ravel() * e)
+    hessian = stack.hessian
+    if rows:
+        a = np.vstack(rows)
+        hessian = hessian + a.T @ a
+        gradient += a.T @ np.concatenate(errors)
     lb = np.maximum(robot.lower - q, -settings.max_step)
     ub = np.minimum(robot.upper - q, settings.max_step)
-    dq = _solve(hessian, a.T @ b, lb, ub, settings.solver)
+    dq = _solve(hessian, gradient, lb, ub, settings.solver)
     if dq is None or not np.all(np.isfinite(dq)):
         return np.zeros(robot.dof)  # infeasible or failed step: stay (limits hold, nothing NaN)
     return dq
@@ -130,7 +191,8 @@ def solve(
     """
     if settings.criteria and learned is None:
         learned = learn(robot)
-    terms = build_terms(robot, settings, learned)
+    terms = Assembly(build_terms(robot, settings, learned), robot.dof, settings.damping)
+    first = Assembly(build_terms(robot, settings, learned, scenario="pose"), robot.dof, settings.damping)
     ref = human_reference(robot, motion, placement)
     dt = float(np.median(np.diff(motion.times))) if motion.n_frames > 1 else 0.01
     q = np.clip(ref.q_map[0], robot.lower, robot.upper)  # start from the mapped human pose (JM)
@@ -141,7 +203,7 @@ def solve(
     for k in range(motion.n_frames):
         frame = frame_at(ref, targets, k, history, dt)
         for it in range(settings.max_iter * (10 if k == 0 else 1)):
-            dq = step(robot, terms, q, frame, settings, data)
+            dq = step(robot, first if k == 0 else terms, q, frame, settings, data)
             q = np.clip(q + dq, robot.lower, robot.upper)
             steps[k] = it + 1
             if np.max(np.abs(dq)) < settings.tol:

@@ -1,0 +1,103 @@
+"""Quality table: robot x approach -> m_hl, m_f, m_hl,f and median fPOS on the recorded KIT takes.
+
+An approach is a solver with the criteria it adds, e.g. ``jm``, ``qp``, ``qp+SYN``, ``jv+HJA_r``,
+``slsqp+SYN+HJA_r``. The stack (weights) is ``tasks/ee_pose.toml`` or ``tasks/relative_pose.toml``
+(``--scenario``). Each take is cropped to ``--seconds`` after skipping the first second.
+``fPOS reach`` is the median over frames whose target lies within 95 % of the arm's length from the
+robot's shoulder (the frames the robot can reach).
+
+Run by hand: ``python bench/quality.py [--robots armar3,armar6] [--approaches qp,qp+SYN]
+[--set criterion_cost=0.1]`` (``--set`` overrides a field of the solvers' settings).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+import hlik
+from hlik.criteria.functional import position_error, relative_errors
+from hlik.criteria.state import robot_state
+from hlik.learned import learn
+from hlik.metrics import evaluate
+from hlik.solvers import get_solver
+from hlik.stack import load_stack
+
+DATA = Path(os.environ.get("HLIK_DATA", Path(__file__).resolve().parents[2] / "shared" / "motion_data"))
+DEFAULT = "jm,jv,qp,qp+SYN,qp+HJA_r,slsqp,slsqp+SYN,slsqp+HJA_r"
+
+
+def reachable(robot: hlik.Robot, traj: hlik.Trajectory) -> np.ndarray:
+    """(T, 2) True where the hand target is within 95 % of the arm's reach of the shoulder."""
+    home = robot_state(robot, robot.home).sites[0]
+    reach = np.sum(np.linalg.norm(np.diff(home, axis=1), axis=-1), axis=-1)  # (2,)
+    shoulder = robot_state(robot, traj.q).shoulder
+    return np.linalg.norm(traj.targets.pos - shoulder, axis=-1) < 0.95 * reach
+
+
+def run(
+    robot_name: str, approach: str, scenario: str, takes: list[Path], seconds: float, overrides: dict
+) -> dict:
+    robot = hlik.load_robot(robot_name)
+    solver, *criteria = approach.split("+")
+    stack = load_stack("relative_pose" if scenario == "relative" else "ee_pose").with_criteria(criteria)
+    learned = learn(robot)
+    settings = replace(stack.settings(solver), **overrides) if solver != "jm" else None
+    rows, fpos, freach, off, times = [], [], [], [], []
+    for take in takes:
+        motion = hlik.load_motion(take, rate=100.0)
+        motion = motion.crop(1.0, min(1.0 + seconds, motion.duration))
+        start = time.perf_counter()
+        traj = hlik.retarget(motion, robot, get_solver(solver, settings, learned))
+        times.append((time.perf_counter() - start) / traj.n_frames)
+        ev = evaluate(traj, robot, learned, scenario=scenario)
+        err = position_error(traj.tcp_pos, traj.targets.pos)
+        rows.append((ev.m_hl, ev.m_f, ev.m_hl_f))
+        fpos.append(err.ravel())
+        freach.append(err[reachable(robot, traj)])
+        off.append(relative_errors(traj.tcp_pos, traj.tcp_rot, traj.targets.pos, traj.targets.rot)[0])
+    m = np.mean(rows, axis=0)
+    return {
+        "m_hl": m[0],
+        "m_f": m[1],
+        "m_hl_f": m[2],
+        "fpos": np.median(np.concatenate(fpos)),
+        "freach": np.median(np.concatenate(freach)),
+        "fpos_off": np.median(np.concatenate(off)),
+        "ms": 1e3 * np.median(times),
+    }
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--robots", default="armar3,armar6,dual_panda")
+    parser.add_argument("--approaches", default=DEFAULT)
+    parser.add_argument("--scenario", default="pose", choices=("pose", "relative"))
+    parser.add_argument("--seconds", type=float, default=5.0)
+    parser.add_argument("--takes", type=int, default=8, help="use the first N takes")
+    parser.add_argument("--set", action="append", default=[], help="override a setting: name=value")
+    args = parser.parse_args()
+    overrides = {k: float(v) for k, v in (item.split("=", 1) for item in args.set)}
+    takes = sorted((DATA / "kit_bimanual").glob("*.xml"))[: args.takes]
+    if not takes:
+        raise SystemExit(f"{DATA / 'kit_bimanual'}: no takes (set HLIK_DATA)")
+    print(f"{len(takes)} takes x {args.seconds:g} s, scenario {args.scenario}")
+    head = f"{'robot':11s} {'approach':18s} {'m_hl':>6s} {'m_f':>6s} {'m_hl,f':>6s} "
+    print(head + f"{'fPOS cm':>8s} {'reach cm':>8s} {'off cm':>7s} {'ms/frame':>8s}", flush=True)
+    for robot_name in args.robots.split(","):
+        for approach in args.approaches.split(","):
+            r = run(robot_name, approach, args.scenario, takes, args.seconds, overrides)
+            print(
+                f"{robot_name:11s} {approach:18s} {r['m_hl']:6.3f} {r['m_f']:6.3f} {r['m_hl_f']:6.3f} "
+                f"{100 * r['fpos']:8.2f} {100 * r['freach']:8.2f} {100 * r['fpos_off']:7.2f} {r['ms']:8.2f}",
+                flush=True,
+            )
+
+
+if __name__ == "__main__":
+    main()

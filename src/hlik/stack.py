@@ -1,0 +1,157 @@
+"""Task-stack files (``tasks/*.toml``): the targets, the human-likeness criteria and each solver's weights.
+
+A stack file names the scenario (``pose``: both TCPs follow the hands; ``relative``: the relative pose
+of the hands), the criteria to add, Table II's gamma per criterion, and one table of settings per
+solver (``[qp]``, ``[jv]``, ``[slsqp]``, the fields of that solver's settings class). Each added
+criterion weighs ``gamma_i * criterion weight / len(criteria)``, as in the paper.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import sys
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from types import MappingProxyType
+
+from hlik.criteria.unified import CRITERIA, GAMMA
+from hlik.errors import HlikError
+from hlik.paths import tasks_dir
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+SCENARIOS = ("pose", "relative")
+SOLVER_TABLES = ("qp", "jv", "slsqp")
+
+
+@dataclass(frozen=True)
+class Stack:
+    """A task stack.
+
+    Attributes:
+        name: Stack name (the file stem).
+        scenario: ``pose`` or ``relative``.
+        criteria: Human-likeness criteria added to the stack (paper names).
+        gamma: Criterion name -> Table II scaling weight.
+        solvers: Solver name -> settings overrides (field name -> value).
+    """
+
+    name: str
+    scenario: str = "pose"
+    criteria: tuple[str, ...] = ()
+    gamma: Mapping[str, float] = field(default_factory=lambda: GAMMA)
+    solvers: Mapping[str, Mapping[str, object]] = field(default_factory=dict)
+
+    def with_criteria(self, criteria: Sequence[str]) -> Stack:
+        """The same stack with other criteria."""
+        _check_criteria(tuple(criteria), self.name)
+        return dataclasses.replace(self, criteria=tuple(criteria))
+
+    def settings(self, solver: str):
+        """The settings object of ``solver`` (``qp``, ``jv``, ``slsqp``) for this stack."""
+        cls = settings_class(solver)
+        return cls(
+            criteria=self.criteria,
+            scenario=self.scenario,
+            gamma=MappingProxyType(dict(self.gamma)),
+            **self.solvers.get(solver, {}),
+        )
+
+
+def settings_class(solver: str) -> type:
+    """The frozen settings dataclass of a solver (imported on demand)."""
+    if solver == "qp":
+        from hlik.solvers.qp import QPSettings
+
+        return QPSettings
+    if solver == "jv":
+        from hlik.solvers.jv import JVSettings
+
+        return JVSettings
+    if solver == "slsqp":
+        from hlik.solvers.slsqp import SLSQPSettings
+
+        return SLSQPSettings
+    raise HlikError(f"solver {solver!r} has no settings; choose one of: {', '.join(SOLVER_TABLES)}")
+
+
+def bundled_stacks() -> tuple[str, ...]:
+    """Names of the stack files shipped with hlik (``ee_pose``, ``relative_pose``)."""
+    return tuple(sorted(p.stem for p in tasks_dir().glob("*.toml")))
+
+
+def load_stack(path: str | Path) -> Stack:
+    """Read a stack file, or a bundled stack by name (``ee_pose``, ``relative_pose``).
+
+    Raises:
+        HlikError: naming the file and the problem (missing, bad TOML, unknown key, bad value).
+    """
+    path = Path(path)
+    if not path.exists() and path.suffix == "" and (tasks_dir() / f"{path}.toml").exists():
+        path = tasks_dir() / f"{path}.toml"
+    try:
+        raw = tomllib.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise HlikError(f"{path}: no such stack file (bundled: {', '.join(bundled_stacks())})") from None
+    except (OSError, UnicodeDecodeError) as e:
+        raise HlikError(f"{path}: cannot read ({e})") from None
+    except tomllib.TOMLDecodeError as e:
+        raise HlikError(f"{path}: not valid TOML ({e})") from None
+    return _parse(raw, path)
+
+
+def _parse(raw: dict, path: Path) -> Stack:
+    allowed = {"name", "scenario", "criteria", "gamma", *SOLVER_TABLES}
+    _check_keys(raw, allowed, path, "the top level")
+    scenario = raw.get("scenario", "pose")
+    if scenario not in SCENARIOS:
+        raise HlikError(f"{path}: unknown scenario {scenario!r}; choose one of: {', '.join(SCENARIOS)}")
+    criteria = raw.get("criteria", [])
+    if not isinstance(criteria, list) or not all(isinstance(c, str) for c in criteria):
+        raise HlikError(f'{path}: criteria must be a list of names, e.g. ["SYN", "HJA_r"]')
+    _check_criteria(tuple(criteria), path)
+    gamma = dict(GAMMA)
+    for name, value in raw.get("gamma", {}).items():
+        _check_criteria((name,), path)
+        gamma[name] = _number(value, path, f"gamma.{name}")
+    solvers = {}
+    for solver in (s for s in SOLVER_TABLES if s in raw):
+        table = raw[solver]
+        if not isinstance(table, dict):
+            raise HlikError(f"{path}: [{solver}] must be a table")
+        fields = {f.name: f for f in dataclasses.fields(settings_class(solver))}
+        _check_keys(table, set(fields) - {"criteria", "scenario", "gamma"}, path, f"[{solver}]")
+        solvers[solver] = MappingProxyType(
+            {k: v if isinstance(v, str) else _number(v, path, f"{solver}.{k}") for k, v in table.items()}
+        )
+    return Stack(
+        name=str(raw.get("name", path.stem)),
+        scenario=scenario,
+        criteria=tuple(criteria),
+        gamma=MappingProxyType(gamma),
+        solvers=MappingProxyType(solvers),
+    )
+
+
+def _check_keys(table: dict, allowed: set[str], path: Path, where: str) -> None:
+    unknown = sorted(set(table) - allowed)
+    if unknown:
+        raise HlikError(
+            f"{path}: unknown key {unknown[0]!r} in {where}; choose from: {', '.join(sorted(allowed))}"
+        )
+
+
+def _check_criteria(criteria: tuple[str, ...], where: object) -> None:
+    unknown = [c for c in criteria if c not in CRITERIA]
+    if unknown:
+        raise HlikError(f"{where}: unknown criteria {', '.join(unknown)}; choose from: {', '.join(CRITERIA)}")
+
+
+def _number(value: object, path: Path, key: str) -> float | int:
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise HlikError(f"{path}: {key} must be a number, got {value!r}")
+    return value
