@@ -19,7 +19,8 @@ from hlik.criteria.reference import human_reference
 from hlik.learned import learn
 from hlik.paths import demo_motion_path
 from hlik.placement import shoulder_placement
-from hlik.solvers.qp import Assembly, QPSettings, build_terms, frame_at, step
+from hlik.solvers.frames import frame_at
+from hlik.solvers.qp import Assembly, QPSettings, build_terms, step
 from hlik.targets import hand_targets
 
 REPEATS = 5

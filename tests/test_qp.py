@@ -15,6 +15,7 @@ from hlik.criteria.state import robot_state
 from hlik.demo import demo_motion
 from hlik.learned import learn
 from hlik.placement import shoulder_placement
+from hlik.robot import SIDES
 from hlik.solvers.qp import QPSettings, qp_solver, solve
 from hlik.targets import HandTargets, hand_targets
 from hlik.tasks import CriterionTask, HumanJointLimit
@@ -148,3 +149,32 @@ def test_cli_qp_with_criteria(takes, tmp_path):
     assert bad.exit_code == 2 and "jm maps joints and cannot add criteria" in bad.stderr
     bad = CliRunner().invoke(app, ["run", "--solver", "qp", "--criteria", "NOPE"])
     assert bad.exit_code == 2 and "unknown criteria NOPE" in bad.stderr
+
+
+def test_mink_solver_retargets_with_mink_and_hlik_tasks():
+    """A user stack: mink FrameTasks beside hlik criterion tasks and limits, in plain mink.solve_ik."""
+    from hlik.solvers.mink_ik import MinkSolver
+
+    r = load_robot("armar6")
+    motion = demo_motion().crop(2.0, 2.5)
+    hands = [mink.FrameTask(f"{s}_tcp", "site", position_cost=10.0, orientation_cost=2.0) for s in SIDES]
+    criteria = [CriterionTask.criterion(c, r, learn(r), cost=0.1) for c in ("SYN", "HJA_r")]
+    limits = [mink.ConfigurationLimit(r.model), HumanJointLimit(r)]
+    traj = retarget(motion, r, MinkSolver([*hands, *criteria], limits))
+    assert traj.solver == "mink" and np.all(np.isfinite(traj.q))
+    assert np.median(np.linalg.norm(traj.tcp_pos - traj.targets.pos, axis=-1)) < 0.02
+    assert np.all((traj.q >= r.lower - 1e-6) & (traj.q <= r.upper + 1e-6))
+
+
+@pytest.mark.parametrize("name", ["armar3", "armar6", "dual_panda"])
+def test_relative_scenario_keeps_the_hands_relative_pose(takes, name):
+    """Eqs. 3-4 tracked after a first frame on the TCP poses; the absolute poses may drift."""
+    from hlik.criteria.functional import relative_errors
+
+    r = load_robot(name)
+    motion = load_motion(takes[7], rate=50.0).crop(1.0, 2.0)
+    traj = retarget(motion, r, qp_solver(QPSettings(scenario="relative")))
+    off_pos, off_rot = relative_errors(traj.tcp_pos, traj.tcp_rot, traj.targets.pos, traj.targets.rot)
+    assert np.median(off_pos) < 0.01 and np.median(off_rot) < np.radians(3)
+    first = np.linalg.norm(traj.tcp_pos[0] - traj.targets.pos[0], axis=-1)
+    assert np.all(first < 0.05)  # the first frame tracks the hands themselves

@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 from typing import Annotated
 
@@ -74,6 +75,9 @@ def run(
         str | None,
         typer.Option(help="Functional score: pose or relative (default: the stack's scenario)."),
     ] = None,
+    gradients: Annotated[
+        str, typer.Option(help="slsqp: analytic gradients, or fd (finite differences, as the paper).")
+    ] = "analytic",
 ) -> None:
     """Retarget a motion to a robot; write a Rerun recording and the trajectory (.npz) beside it."""
     from rich.progress import (
@@ -105,6 +109,10 @@ def run(
         if chosen and solver == "jm":
             raise HlikError("jm maps joints and cannot add criteria; choose --solver jv, qp or slsqp")
         scenario = scenario or task_stack.scenario
+        if gradients not in ("analytic", "fd"):
+            raise HlikError(f"unknown gradients {gradients!r}; choose analytic or fd")
+        if gradients == "fd" and solver != "slsqp":
+            raise HlikError("--gradients fd is for --solver slsqp")
         if layout not in LAYOUTS:
             raise HlikError(f"unknown layout {layout!r}; choose one of: {', '.join(LAYOUTS)}")
         _check_scenario(scenario)
@@ -132,6 +140,8 @@ def run(
             start = time.perf_counter()
             step = lambda k: progress.update(task, completed=k + 1)  # noqa: E731
             settings = None if solver == "jm" else task_stack.settings(solver)
+            if solver == "slsqp":
+                settings = replace(settings, gradients=gradients)
             # jm by name: the trajectory records the solver's name
             traj = retarget(m, r, solver if solver == "jm" else get_solver(solver, settings, learned, step))
             progress.update(task, completed=m.n_frames)

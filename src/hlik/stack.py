@@ -126,7 +126,7 @@ def _parse(raw: dict, path: Path) -> Stack:
         fields = {f.name: f for f in dataclasses.fields(settings_class(solver))}
         _check_keys(table, set(fields) - {"criteria", "scenario", "gamma"}, path, f"[{solver}]")
         solvers[solver] = MappingProxyType(
-            {k: v if isinstance(v, str) else _number(v, path, f"{solver}.{k}") for k, v in table.items()}
+            {k: _value(v, fields[k].default, path, f"{solver}.{k}") for k, v in table.items()}
         )
     return Stack(
         name=str(raw.get("name", path.stem)),
@@ -149,6 +149,15 @@ def _check_criteria(criteria: tuple[str, ...], where: object) -> None:
     unknown = [c for c in criteria if c not in CRITERIA]
     if unknown:
         raise HlikError(f"{where}: unknown criteria {', '.join(unknown)}; choose from: {', '.join(CRITERIA)}")
+
+
+def _value(value: object, default: object, path: Path, key: str) -> object:
+    """A setting of the default's kind: text for text settings, else a number."""
+    if isinstance(default, str):
+        if not isinstance(value, str):
+            raise HlikError(f"{path}: {key} must be text, got {value!r}")
+        return value
+    return _number(value, path, key)
 
 
 def _number(value: object, path: Path, key: str) -> float | int:

@@ -87,7 +87,9 @@ def fit_synergies(
     stacked = np.concatenate(poses)
     pose_pca = PCA(n_components=k).fit(stacked)
     vel = np.concatenate([velocities(p, dt) for p in poses])
-    scale = np.maximum(vel.std(axis=0), 1e-6)
+    # joints the corpus never moves get a floor, or any motion of theirs would weigh ~1e6 times more
+    std = vel.std(axis=0)
+    scale = np.maximum(std, 0.05 * std.max() + 1e-9)
     vel_pca = PCA(n_components=k).fit(vel / scale)
     return Synergies(
         idx=idx,

@@ -18,13 +18,13 @@ import mujoco
 import numpy as np
 import qpsolvers
 
-from hlik.criteria.reference import HumanReference, human_reference
 from hlik.criteria.state import robot_state
 from hlik.criteria.unified import GAMMA
 from hlik.learned import Learned, learn
 from hlik.motion import HumanMotion
 from hlik.placement import Placement
 from hlik.robot import Robot
+from hlik.solvers.frames import as_solver, iterate, track
 from hlik.targets import HandTargets
 from hlik.terms import (
     Frame,
@@ -49,8 +49,9 @@ class QPSettings:
         position_cost, orientation_cost: TCP pose term weights, per metre and per radian.
         relative_position_cost, relative_orientation_cost: Relative pose weights (``relative``).
         gamma: Criterion name -> scaling weight (Table II; 1 where absent).
-        criterion_cost: Base weight of a criterion; each gets ``gamma_i * criterion_cost / len(criteria)``
-            (divided by the number of criteria as in the paper).
+        criterion_cost: Objective weight of the criteria: criterion i adds
+            ``gamma_i * criterion_cost / len(criteria) * ||e_i||^2`` (divided by the number of
+            criteria as in the paper; its least-squares cost is the square root).
         velocity, acceleration, jerk: Weights of the smoothness terms.
         damping: Levenberg-Marquardt damping of every step.
         max_iter: QP steps per frame at most (the first frame gets ten times more).
@@ -66,7 +67,7 @@ class QPSettings:
     orientation_cost: float = 2.0
     relative_position_cost: float = 10.0
     relative_orientation_cost: float = 2.0
-    criterion_cost: float = 0.05
+    criterion_cost: float = 0.02
     velocity: float = 0.02
     acceleration: float = 0.01
     jerk: float = 0.005
@@ -96,7 +97,8 @@ def build_terms(
     terms += smoothness_terms(robot.dof, settings.velocity, settings.acceleration, settings.jerk)
     for name in settings.criteria:
         term = criterion_term(name, robot, learned)
-        term.cost = settings.gamma.get(name, 1.0) * settings.criterion_cost / len(settings.criteria)
+        # the objective weighs ||e_i||^2 by gamma_i * criterion_cost / k, as the paper weighs h_i
+        term.cost = np.sqrt(settings.gamma.get(name, 1.0) * settings.criterion_cost / len(settings.criteria))
         terms.append(term)
     return terms
 
@@ -105,11 +107,6 @@ def target_terms(position: Term, orientation: Term, position_cost: float, orient
     """The target terms with non-zero cost."""
     position.cost, orientation.cost = position_cost, orientation_cost
     return [t for t in (position, orientation) if t.cost > 0]
-
-
-def frame_at(ref: HumanReference, targets: HandTargets, k: int, history: np.ndarray, dt: float) -> Frame:
-    """The context of frame ``k``; ``history`` (3, n) holds the previous solutions, newest first."""
-    return Frame(targets.pos[k], targets.rot[k], ref.q_map[k], ref.psi[k], ref.manip[k], history, dt)
 
 
 class Assembly:
@@ -193,28 +190,18 @@ def solve(
         learned = learn(robot)
     terms = Assembly(build_terms(robot, settings, learned), robot.dof, settings.damping)
     first = Assembly(build_terms(robot, settings, learned, scenario="pose"), robot.dof, settings.damping)
-    ref = human_reference(robot, motion, placement)
-    dt = float(np.median(np.diff(motion.times))) if motion.n_frames > 1 else 0.01
-    q = np.clip(ref.q_map[0], robot.lower, robot.upper)  # start from the mapped human pose (JM)
-    history = np.tile(q, (3, 1))
-    data = mujoco.MjData(robot.model)
-    out = np.empty((motion.n_frames, robot.dof))
     steps = np.zeros(motion.n_frames, dtype=int)
-    for k in range(motion.n_frames):
-        frame = frame_at(ref, targets, k, history, dt)
-        for it in range(settings.max_iter * (10 if k == 0 else 1)):
-            dq = step(robot, first if k == 0 else terms, q, frame, settings, data)
-            q = np.clip(q + dq, robot.lower, robot.upper)
-            steps[k] = it + 1
-            if np.max(np.abs(dq)) < settings.tol:
-                break
-        if k == 0:
-            history = np.tile(q, (3, 1))
-        out[k] = q
-        history = np.vstack([q, history[:2]])
-        if progress is not None:
-            progress(k)
-    return out, steps
+    data = mujoco.MjData(robot.model)
+
+    def solve_frame(k: int, frame: Frame, q: np.ndarray) -> np.ndarray:
+        stack = first if k == 0 else terms
+        max_iter = settings.max_iter * (10 if k == 0 else 1)
+        q, steps[k] = iterate(
+            lambda x: step(robot, stack, x, frame, settings, data), q, robot, max_iter, settings.tol
+        )
+        return q
+
+    return track(robot, motion, targets, placement, solve_frame, progress), steps
 
 
 def qp_solver(
@@ -223,8 +210,4 @@ def qp_solver(
     progress: Callable[[int], None] | None = None,
 ):
     """A solver for :func:`hlik.retarget.retarget` with the given settings."""
-
-    def qp(robot: Robot, motion: HumanMotion, targets: HandTargets, placement: Placement) -> np.ndarray:
-        return solve(robot, motion, targets, placement, settings, learned, progress)[0]
-
-    return qp
+    return as_solver("qp", solve, settings, learned, progress)

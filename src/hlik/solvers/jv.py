@@ -1,0 +1,291 @@
+"""JV: the paper's Jacobian velocity controller (Sec. IV-B), the baseline the QP replaces.
+
+Per step, the TCP targets are the primary task, solved by Chan & Dubey's weighted least-norm
+solution with damping (joints moving toward a limit are weighted down); the chosen human-likeness
+criteria and Chan & Dubey's joint-limit criterion H are the secondary task, their weighted gradient
+projected onto the null space of the target Jacobian (gradient projection; formulas §5):
+
+    dq = W⁻¹Jᵀ(J W⁻¹Jᵀ + λ²I)⁻¹ (-step e) + bound(k N ∇(Σ w_i h_i + w_H H)),
+
+the whole capped to ``max_step`` and clipped into the joint limits. Frames are warm-started from
+the previous solution; a frame stops when no joint moves more than ``tol`` or after ``max_iter``
+steps. The criterion gradients are the analytic ones of :mod:`hlik.terms` (the paper uses finite
+differences).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field, replace
+
+import mujoco
+import numpy as np
+
+from hlik.criteria.state import RobotState, robot_state
+from hlik.criteria.unified import GAMMA
+from hlik.learned import Learned, learn
+from hlik.motion import HumanMotion
+from hlik.placement import Placement
+from hlik.robot import Robot
+from hlik.solvers.frames import as_solver, iterate, track
+from hlik.targets import HandTargets
+from hlik.terms import (
+    Frame,
+    Orientation,
+    Position,
+    RelativeOrientation,
+    RelativePosition,
+    Term,
+    criterion_term,
+)
+
+
+@dataclass(frozen=True)
+class JVSettings:
+    """The controller's gains and the stopping rule.
+
+    Attributes:
+        criteria: Human-likeness criteria of the null-space task (paper names; the paper leaves MJE
+            out of JV).
+        scenario: ``pose`` tracks both TCP poses; ``relative`` tracks the relative pose of the hands
+            (paper Eqs. 3-4) and the TCP poses only at the first frame (Sec. V-B), as the QP does.
+        gamma: Criterion name -> scaling weight gamma_i (Table II; 1 where absent).
+        weight: w_i = weight * gamma_i, divided by the number of criteria (paper Sec. V: 0.1).
+        jla_gamma: gamma of Chan & Dubey's H in the null-space cost (paper Sec. V: 4), so
+            w_H = weight * jla_gamma, not divided (H is no human-likeness criterion); 0 drops H.
+        step: Gain on the Cartesian error, x_dot = -step * e (Simox CompositeDiffIK ``stepSize``).
+        k: Null-space gain; k < 0 descends (paper Sec. V, Chan & Dubey Eq. 10).
+        max_null: Bound on the largest joint change of the null-space step, rad (paper:
+            max|dH| <= 0.2); it halves within a frame whenever the null-space step reverses.
+        max_step: Bound on the largest joint change of a whole step, scaled down uniformly, rad
+            (Simox CompositeDiffIK ``maxJointAngleStep``).
+        damping: Least lambda of the damped least-norm solution (m, as the position rows set the
+            Jacobian's scale). It keeps singular targets bounded.
+        error_damping: lambda² = damping² + |e|² (Sugihara 2011): large errors, i.e. targets out of
+            reach, get strong damping, small ones the least. False: lambda = damping throughout.
+        orientation_weight: Orientation rows (rad) relative to position rows (m) in the primary task;
+            it matters only where the targets conflict or are damped. 0.2 is the QP's 2 / 10.
+        rcond: Singular values of J below rcond times the largest count as null space.
+        max_iter: Steps per frame at most (paper: 100; the first frame gets ten times more).
+        tol: A frame has converged when no joint moved more than this in a step, rad.
+    """
+
+    criteria: tuple[str, ...] = ()
+    scenario: str = "pose"
+    gamma: Mapping[str, float] = field(default_factory=lambda: GAMMA)
+    weight: float = 0.1
+    jla_gamma: float = 4.0
+    step: float = 0.5
+    k: float = -0.5
+    max_null: float = 0.2
+    max_step: float = 0.2
+    damping: float = 5e-3
+    error_damping: bool = True
+    orientation_weight: float = 0.2
+    rcond: float = 1e-6
+    max_iter: int = 100
+    tol: float = 1e-4
+
+
+@dataclass(frozen=True, eq=False)
+class Memory:
+    """What a step keeps for the next one.
+
+    Attributes:
+        jla: (n,) dH/dq, to tell the joints moving toward a limit (weights W).
+        null: (n,) the null-space step taken, to tell a reversal.
+        null_bound: The current bound on the null-space step, rad (``max_null`` at each frame).
+    """
+
+    jla: np.ndarray
+    null: np.ndarray
+    null_bound: float
+
+
+def chan_dubey(q: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> tuple[float, np.ndarray]:
+    """Chan & Dubey's joint-limit criterion H (Eq. 11) and its gradient dH/dq (n,) at ``q`` (n,).
+
+    ``H = sum_i (u_i - l_i)² / (4 (u_i - q_i)(q_i - l_i))``: 1 per joint at the centre of its
+    range, infinite at the limits. Unlimited joints (infinite bounds) contribute nothing. Distances
+    to the limits are floored at 1e-6 of the range, so a joint clipped onto a limit gives a huge but
+    finite value.
+    """
+    limited = np.isfinite(lower) & np.isfinite(upper)
+    lo, hi, x = lower[limited], upper[limited], q[limited]
+    span = hi - lo
+    to_hi, to_lo = np.maximum(hi - x, 1e-6 * span), np.maximum(x - lo, 1e-6 * span)
+    grad = np.zeros(len(q))
+    grad[limited] = span**2 * (to_lo - to_hi) / (4.0 * to_hi**2 * to_lo**2)
+    return float(np.sum(span**2 / (4.0 * to_hi * to_lo))), grad
+
+
+def limit_weights(grad: np.ndarray, previous: np.ndarray) -> np.ndarray:
+    """Chan & Dubey's diagonal W (Eq. 13), (n,): 1 + |dH/dq_i| where |dH/dq_i| did not fall since
+    the previous step (moving toward a limit), else 1. ``grad``, ``previous``: dH/dq (n,)."""
+    return np.where(np.abs(grad) >= np.abs(previous), 1.0 + np.abs(grad), 1.0)
+
+
+def weighted_least_norm(jac: np.ndarray, xdot: np.ndarray, weights: np.ndarray, damping: float) -> np.ndarray:
+    """qdot (n,) = W⁻¹Jᵀ(J W⁻¹Jᵀ + λ²I)⁻¹ xdot for J (m, n), xdot (m,), diagonal W (n,).
+
+    An infinite weight takes its joint out of the solution.
+    """
+    scaled = jac / weights  # J W⁻¹
+    gram = scaled @ jac.T
+    gram[np.diag_indices_from(gram)] += damping**2
+    return scaled.T @ np.linalg.solve(gram, xdot)
+
+
+def clamped_least_norm(
+    jac: np.ndarray, xdot: np.ndarray, weights: np.ndarray, damping: float, q: np.ndarray, robot: Robot
+) -> np.ndarray:
+    """:func:`weighted_least_norm` without the joints at a limit that it would push past the limit.
+
+    Clipping such a step afterwards leaves a residual step the rest of the arm never compensates;
+    solving again without those joints (an infinite weight, Chan & Dubey's W at the limit) does.
+    """
+    qdot = weighted_least_norm(jac, xdot, weights, damping)
+    for _ in range(len(q)):
+        out = ((q <= robot.lower) & (qdot < 0.0)) | ((q >= robot.upper) & (qdot > 0.0))
+        if not np.any(out & np.isfinite(weights)):
+            break
+        weights = np.where(out, np.inf, weights)
+        qdot = weighted_least_norm(jac, xdot, weights, damping)
+    return qdot
+
+
+def null_space_projector(jac: np.ndarray, rcond: float = 1e-6) -> np.ndarray:
+    """(n, n) orthogonal projector N onto the null space of J (m, n), from its SVD.
+
+    Unlike ``I - J⁺J`` with a damped inverse, ``J N = 0`` up to the singular values counted as null
+    (below ``rcond`` times the largest), so the secondary task leaves the primary alone to first order.
+    """
+    _, s, vt = np.linalg.svd(jac, full_matrices=False)
+    rows = vt[s > rcond * s.max(initial=0.0)]
+    return np.eye(jac.shape[1]) - rows.T @ rows
+
+
+def bound(v: np.ndarray, limit: float) -> np.ndarray:
+    """``v`` scaled down uniformly so that max|v_i| <= limit (its direction kept)."""
+    largest = np.max(np.abs(v), initial=0.0)
+    return v * (limit / largest) if largest > limit else v
+
+
+def primary_terms(scenario: str) -> list[Term]:
+    """The primary task's terms of ``scenario`` (``pose`` or ``relative``)."""
+    if scenario == "relative":
+        return [RelativePosition(), RelativeOrientation()]
+    if scenario == "pose":
+        return [Position(), Orientation()]
+    raise ValueError(f"scenario must be 'pose' or 'relative', got {scenario!r}")
+
+
+def criterion_terms(robot: Robot, settings: JVSettings, learned: Learned | None) -> list[Term]:
+    """The criteria of ``settings``, each with its null-space weight w_i as ``cost``."""
+    terms = []
+    for name in settings.criteria:
+        term = criterion_term(name, robot, learned)
+        term.cost = settings.weight * settings.gamma.get(name, 1.0) / len(settings.criteria)
+        terms.append(term)
+    return terms
+
+
+def primary(
+    targets: Sequence[Term], state: RobotState, frame: Frame, orientation_weight: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Stacked residual e (m,) and Jacobian J (m, n) of the target terms, orientation rows weighted."""
+    rotational = (Orientation, RelativeOrientation)
+    rows = [(orientation_weight if isinstance(t, rotational) else 1.0, *t(state, frame)) for t in targets]
+    return np.concatenate([w * e for w, e, _ in rows]), np.vstack([w * jac for w, _, jac in rows])
+
+
+def secondary(
+    criteria: Sequence[Term], state: RobotState, frame: Frame, jla: np.ndarray, settings: JVSettings
+) -> np.ndarray:
+    """Gradient (n,) of the null-space cost sum_i w_i h_i + w_H H; ``jla`` is dH/dq (n,)."""
+    grad = settings.weight * settings.jla_gamma * jla
+    for term in criteria:
+        grad = grad + term.cost * term.gradient(state, frame)[1]
+    return grad
+
+
+def step(
+    robot: Robot,
+    targets: Sequence[Term],
+    criteria: Sequence[Term],
+    q: np.ndarray,
+    frame: Frame,
+    settings: JVSettings,
+    memory: Memory,
+    data: mujoco.MjData | None = None,
+) -> tuple[np.ndarray, Memory]:
+    """One JV step from ``q`` (n,): the joint change dq (n,), before clipping, and the new memory.
+
+    The null-space bound halves whenever the null-space step reverses: the steep H (and the
+    criteria) make bounded gradient steps of a fixed size zig-zag across their minimum, so a frame
+    would never converge.
+    """
+    sites = tuple(sorted({i for t in (*targets, *criteria) for i in t.sites}))
+    state = robot_state(robot, q, jacobians=True, data=data, jacobian_sites=sites)
+    e, jac = primary(targets, state, frame, settings.orientation_weight)
+    _, jla = chan_dubey(q, robot.lower, robot.upper)
+    damping = np.hypot(settings.damping, np.linalg.norm(e)) if settings.error_damping else settings.damping
+    task = clamped_least_norm(jac, -settings.step * e, limit_weights(jla, memory.jla), damping, q, robot)
+    grad = secondary(criteria, state, frame, jla, settings)
+    null = settings.k * (null_space_projector(jac, settings.rcond) @ grad)
+    null_bound = memory.null_bound * (0.5 if null @ memory.null < 0.0 else 1.0)
+    null = bound(null, null_bound)
+    dq = bound(task + null, settings.max_step)
+    if not np.all(np.isfinite(dq)):
+        dq, null = np.zeros(robot.dof), np.zeros(robot.dof)  # a failed step stays put: nothing NaN
+    return dq, Memory(jla, null, null_bound)
+
+
+def solve(
+    robot: Robot,
+    motion: HumanMotion,
+    targets: HandTargets,
+    placement: Placement,
+    settings: JVSettings = JVSettings(),
+    learned: Learned | None = None,
+    progress: Callable[[int], None] | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Retarget frame by frame.
+
+    Returns:
+        (T, n) joint angles and (T,) number of steps taken per frame.
+    """
+    if settings.criteria and learned is None:
+        learned = learn(robot)
+    tasks, first = primary_terms(settings.scenario), primary_terms("pose")
+    criteria = criterion_terms(robot, settings, learned)
+    steps = np.zeros(motion.n_frames, dtype=int)
+    data = mujoco.MjData(robot.model)
+    memory = None
+
+    def solve_frame(k: int, frame: Frame, q: np.ndarray) -> np.ndarray:
+        nonlocal memory
+        if memory is None:
+            memory = Memory(
+                chan_dubey(q, robot.lower, robot.upper)[1], np.zeros(robot.dof), settings.max_null
+            )
+        memory = replace(memory, null_bound=settings.max_null)
+
+        def jv_step(x: np.ndarray) -> np.ndarray:
+            nonlocal memory
+            dq, memory = step(robot, first if k == 0 else tasks, criteria, x, frame, settings, memory, data)
+            return dq
+
+        q, steps[k] = iterate(jv_step, q, robot, settings.max_iter * (10 if k == 0 else 1), settings.tol)
+        return q
+
+    return track(robot, motion, targets, placement, solve_frame, progress), steps
+
+
+def jv_solver(
+    settings: JVSettings = JVSettings(),
+    learned: Learned | None = None,
+    progress: Callable[[int], None] | None = None,
+):
+    """A solver for :func:`hlik.retarget.retarget` with the given settings."""
+    return as_solver("jv", solve, settings, learned, progress)

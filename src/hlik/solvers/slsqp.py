@@ -1,0 +1,365 @@
+"""SLSQP retargeting: the paper's OPT, RelaxedIK groove losses minimised per frame with NLopt.
+
+Per frame, SLSQP minimises ``sum_i w_i l(gamma_i h_i(q))`` over the joint angles q within the joint
+limits, where each h_i is the scalar cost of a term (:mod:`hlik.terms`): the TCP pose or relative
+pose errors, RelaxedIK's minimum velocity, acceleration and jerk toward the previous solutions, and
+the chosen human-likeness criteria; l is the groove loss. One forward-kinematics pass per evaluation
+gives every h_i and, with ``gradients="analytic"``, its exact gradient from the term Jacobians (the
+few criteria whose Jacobian is not dh/dq are differentiated numerically, :data:`NUMERIC_GRADIENT`);
+``gradients="fd"`` uses forward differences of the objective instead, as the paper and RelaxedIK do.
+Frames are warm-started from the previous solution; a frame where NLopt fails keeps the best finite
+configuration it evaluated (or the previous solution) and is reported.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field, replace
+from types import MappingProxyType
+
+import mujoco
+import nlopt
+import numpy as np
+
+from hlik.criteria.smoothness import ACCELERATION, JERK, VELOCITY
+from hlik.criteria.state import robot_state
+from hlik.criteria.unified import GAMMA
+from hlik.learned import Learned, learn
+from hlik.motion import HumanMotion
+from hlik.placement import Placement
+from hlik.robot import Robot
+from hlik.solvers.frames import as_solver, track
+from hlik.targets import HandTargets
+from hlik.terms import (
+    Frame,
+    Orientation,
+    Position,
+    RelativeOrientation,
+    RelativePosition,
+    Smooth,
+    Term,
+    criterion_term,
+)
+
+# Sec. IV-A's gamma_p = 10 for the TCP position. The relative position (m, like fPOS) gets it too:
+# with 1 the groove's well (c = 0.1) is 10 cm wide and SLSQP leaves fPOS^off at 10-50 cm on the
+# demo; with 10 it is a few mm (Sec. V-B's x0: 3 cm).
+POSITION_TERMS = ("position", "relative_position")
+
+# Terms whose value (not only its Jacobian) reads site Jacobians: MAN^r is built from the TCP's.
+VALUE_SITES: Mapping[str, tuple[int, ...]] = MappingProxyType({"MAN_r": (3,)})
+
+# Criteria whose Jacobian holds a configuration-dependent prediction fixed (Psi_human from the hand
+# pose, Soechting's elbow and joint angles from the wrist): a Gauss-Newton step for the QP, but not
+# dh/dq. Their h is differentiated numerically, with a cap on the gradient's norm: EEA's mirrors the
+# term's cap on dPsi/dq (20 rad/rad, over pi; the paper caps the elevation gradients, Sec. IV-A).
+NUMERIC_GRADIENT: Mapping[str, float] = MappingProxyType(
+    {"EEA": 20.0 / np.pi, "EEA_r": 20.0 / np.pi, "SOA_x": np.inf, "SOA_q": np.inf}
+)
+
+# NLopt exceptions that end one frame, not the run, and the result code each stands for.
+NLOPT_ERRORS: Mapping[type, int] = MappingProxyType(
+    {
+        nlopt.RoundoffLimited: nlopt.ROUNDOFF_LIMITED,
+        nlopt.ForcedStop: nlopt.FORCED_STOP,
+        nlopt.runtime_error: nlopt.FAILURE,
+        RuntimeError: nlopt.FAILURE,
+    }
+)
+
+
+def groove(
+    x: float | np.ndarray, c: float = 0.1, r: float = 10.0, s: float = 0.0, d: int = 2, g: int = 2
+) -> tuple[float | np.ndarray, float | np.ndarray]:
+    """RelaxedIK's groove loss ``l = -exp(-(x - s)^d / (2 c^2)) + r (x - s)^g`` and dl/dx.
+
+    The paper's form (Sec. IV-A) with n = 1; the defaults are its s = 0, c = 0.1, r = 10, d = g = 2.
+    ``x`` is a scalar or an array (elementwise).
+    """
+    y = x - s
+    bump = np.exp(-(y**d) / (2.0 * c * c))
+    return -bump + r * y**g, bump * d * y ** (d - 1) / (2.0 * c * c) + r * g * y ** (g - 1)
+
+
+@dataclass(frozen=True)
+class SLSQPSettings:
+    """The loss terms, their weights and NLopt's stopping rule.
+
+    The defaults are the paper's end-effector pose retargeting (Sec. IV-A, RelaxedIK's weights):
+    w_p = 10, w_o = 9, w_v = 7, w_a = 2, w_j = 1 and w_i = 10 per criterion, divided by the
+    number of criteria (Sec. V-A). :meth:`relative` gives the relative pose weights of Sec. V-B.
+
+    Attributes:
+        criteria: Human-likeness criteria added to the objective (paper names).
+        scenario: ``pose``: every frame uses the weights below. ``relative``: the first frame tracks
+            the TCP poses with the default pose weights instead of the relative pose (Sec. V-B).
+        position, orientation: Weights of the TCP position (fPOS, m) and orientation (fORI, rad) losses.
+        relative_position, relative_orientation: Weights of the relative pose losses (paper Eqs. 3-4).
+        velocity, acceleration, jerk: Weights of RelaxedIK's minimum velocity, acceleration, jerk.
+        criterion: Weight of the criteria together; each gets ``criterion / len(criteria)``.
+        gamma: Criterion name -> scaling gamma_i inside the groove (Table II; 1 where absent).
+        position_gamma: gamma_p of the TCP and relative position losses (Sec. IV-A: 10).
+        gradients: ``analytic`` (from the term Jacobians) or ``fd`` (forward differences, the paper's).
+        ftol_rel: NLopt's relative tolerance on the objective (RelaxedIK's).
+        max_eval: Objective evaluations per frame at most (RelaxedIK's 100).
+        first_eval: Evaluations at most for the first frame, which starts from the mapped human pose.
+        fd_step: Forward-difference step, rad (``fd`` only).
+    """
+
+    criteria: tuple[str, ...] = ()
+    scenario: str = "pose"
+    position: float = 10.0
+    orientation: float = 9.0
+    relative_position: float = 0.0
+    relative_orientation: float = 0.0
+    velocity: float = 7.0
+    acceleration: float = 2.0
+    jerk: float = 1.0
+    criterion: float = 10.0
+    gamma: Mapping[str, float] = field(default_factory=lambda: GAMMA)
+    position_gamma: float = 10.0
+    gradients: str = "analytic"
+    ftol_rel: float = 1e-6
+    max_eval: int = 100
+    first_eval: int = 1000
+    fd_step: float = 1e-7
+
+    def __post_init__(self):
+        if self.scenario not in ("pose", "relative"):
+            raise ValueError(f"scenario must be 'pose' or 'relative', not {self.scenario!r}")
+        if self.gradients not in ("analytic", "fd"):
+            raise ValueError(f"gradients must be 'analytic' or 'fd', not {self.gradients!r}")
+
+    @classmethod
+    def relative(cls, criteria: tuple[str, ...] = (), **changes) -> SLSQPSettings:
+        """The paper's relative pose retargeting (Sec. V-B), ``changes`` applied on top.
+
+        Relative position 3, relative orientation 15, velocity 40, acceleration 10, jerk 5, TCP
+        position and orientation 0, and the criteria's weight scaled by 10 (100, divided by the
+        number of criteria). The first frame tracks the TCP poses "as in Section V-A".
+        """
+        weights = dict(position=0.0, orientation=0.0, relative_position=3.0, relative_orientation=15.0)
+        weights |= dict(velocity=40.0, acceleration=10.0, jerk=5.0, criterion=100.0)
+        return cls(criteria=tuple(criteria), scenario="relative", **(weights | changes))
+
+
+@dataclass(frozen=True)
+class Loss:
+    """One summand ``weight * groove(gamma * h)`` of the objective, h from ``term``."""
+
+    term: Term
+    weight: float
+    gamma: float
+
+
+def build_losses(
+    robot: Robot, settings: SLSQPSettings, learned: Learned | None, first: bool = False
+) -> list[Loss]:
+    """The losses of ``settings`` with non-zero weight; ``first``: those of the first frame.
+
+    The first frame of ``relative`` tracks the TCP poses "as in Section V-A": with the default
+    (pose) weights, and the same criteria.
+    """
+    if first and settings.scenario == "relative":
+        pose = SLSQPSettings()
+        settings = replace(
+            pose, criteria=settings.criteria, gamma=settings.gamma, position_gamma=settings.position_gamma
+        )
+    n = robot.dof
+    weighted: list[tuple[Term, float]] = [
+        (Position(), settings.position),
+        (Orientation(), settings.orientation),
+        (RelativePosition(), settings.relative_position),
+        (RelativeOrientation(), settings.relative_orientation),
+        (Smooth("velocity", VELOCITY, n), settings.velocity),
+        (Smooth("acceleration", ACCELERATION, n), settings.acceleration),
+        (Smooth("jerk", JERK, n), settings.jerk),
+    ]
+    for name in settings.criteria:
+        weighted.append((criterion_term(name, robot, learned), settings.criterion / len(settings.criteria)))
+    gamma = {name: settings.position_gamma for name in POSITION_TERMS}
+    gamma |= {name: settings.gamma.get(name, 1.0) for name in settings.criteria}
+    return [Loss(t, float(w), float(gamma.get(t.name, 1.0))) for t, w in weighted if w > 0]
+
+
+class Objective:
+    """``sum_i w_i groove(gamma_i h_i(q))`` of one frame and its gradient; NLopt's callback.
+
+    Set the frame with :meth:`reset` before optimising. Keeps the configuration with the lowest
+    finite objective NLopt asked for (:attr:`best`) and counts NLopt's evaluations.
+    """
+
+    def __init__(
+        self, robot: Robot, losses: Sequence[Loss], gradients: str = "analytic", fd_step: float = 1e-7
+    ):
+        self.robot, self.losses, self.fd_step = robot, tuple(losses), fd_step
+        self.analytic = gradients == "analytic"
+        self.numeric = tuple(i for i, loss in enumerate(self.losses) if loss.term.name in NUMERIC_GRADIENT)
+        self.caps = np.array([NUMERIC_GRADIENT[self.losses[i].term.name] for i in self.numeric])
+        # one FK pass computes only the site Jacobians the terms read (for fd: their values read)
+        self.sites = _sites(loss.term.sites for loss in self.losses)
+        self.value_sites = _sites(VALUE_SITES.get(loss.term.name, ()) for loss in self.losses)
+        self.weights = np.array([loss.weight for loss in self.losses])
+        self.gammas = np.array([loss.gamma for loss in self.losses])
+        self.data = mujoco.MjData(robot.model)
+        self.reset()
+
+    def reset(self, frame: Frame | None = None) -> None:
+        """Start a frame: forget the best configuration and the evaluation count."""
+        self.frame = frame
+        self.best, self.best_value, self.evaluations = None, np.inf, 0
+
+    def costs(self, q: np.ndarray, which: Sequence[int] | None = None) -> np.ndarray:
+        """The costs h_i at ``q`` (n,) of the losses ``which`` (all by default), no Jacobians needed."""
+        losses = self.losses if which is None else [self.losses[i] for i in which]
+        state = robot_state(self.robot, q, True, self.data, self.value_sites)
+        return np.array([loss.term.metric(loss.term(state, self.frame)[0])[0] for loss in losses])
+
+    def value(self, q: np.ndarray) -> float:
+        """The objective at ``q`` (n,)."""
+        return self._total(self.costs(q))[0]
+
+    def value_and_gradient(self, q: np.ndarray) -> tuple[float, np.ndarray]:
+        """The objective at ``q`` (n,) and its gradient (n,) from the terms' Jacobians."""
+        state = robot_state(self.robot, q, True, self.data, self.sites)
+        h, dh_dq = np.empty(len(self.losses)), np.empty((len(self.losses), len(q)))
+        for i, loss in enumerate(self.losses):
+            h[i], dh_dq[i] = loss.term.gradient(state, self.frame)
+        if self.numeric:
+            dh_dq[list(self.numeric)] = self._numeric_gradient(q, h[list(self.numeric)])
+        total, slopes = self._total(h)
+        return total, slopes @ dh_dq
+
+    def fd_gradient(self, q: np.ndarray, f0: float) -> np.ndarray:
+        """Forward differences (n,) of the objective at ``q`` whose value is ``f0``: n evaluations."""
+        grad, x = np.empty(len(q)), q.copy()
+        for j in range(len(q)):
+            x[j] += self.fd_step
+            grad[j] = (self.value(x) - f0) / self.fd_step
+            x[j] = q[j]
+        return grad
+
+    def _numeric_gradient(self, q: np.ndarray, h0: np.ndarray) -> np.ndarray:
+        """Forward differences (k, n) of the costs of the losses :attr:`numeric`, valued ``h0`` (k,)."""
+        dh_dq, x = np.empty((len(h0), len(q))), q.copy()
+        for j in range(len(q)):
+            x[j] += self.fd_step
+            dh_dq[:, j] = (self.costs(x, self.numeric) - h0) / self.fd_step
+            x[j] = q[j]
+        norms = np.linalg.norm(dh_dq, axis=1)
+        return dh_dq * np.minimum(1.0, self.caps / np.maximum(norms, 1e-300))[:, None]
+
+    def _total(self, h: np.ndarray) -> tuple[float, np.ndarray]:
+        """The objective of costs ``h`` (m,) and its derivatives (m,) with respect to them."""
+        value, slope = groove(self.gammas * h)
+        return float(self.weights @ value), self.weights * self.gammas * slope
+
+    def __call__(self, x: np.ndarray, grad: np.ndarray) -> float:
+        """NLopt's callback: the objective at ``x``; fills ``grad`` in place when it is not empty."""
+        self.evaluations += 1
+        if grad.size and self.analytic:
+            f, grad[:] = self.value_and_gradient(x)
+        else:
+            f = self.value(x)
+            if grad.size:
+                grad[:] = self.fd_gradient(x, f)
+        if f < self.best_value:  # False for NaN
+            self.best, self.best_value = x.copy(), f
+        return f
+
+
+def _sites(groups) -> tuple[int, ...]:
+    return tuple(sorted({i for group in groups for i in group}))
+
+
+@dataclass(frozen=True, eq=False)
+class SLSQPInfo:
+    """What happened per frame.
+
+    Attributes:
+        evaluations: (T,) objective evaluations NLopt made (``fd``: each costs n + 1 FK passes).
+        status: (T,) NLopt's result code (negative: failure, e.g. ``nlopt.ROUNDOFF_LIMITED``).
+        failed: Frames where NLopt failed or returned a non-finite result; they hold the best finite
+            configuration evaluated in that frame, else the previous frame's solution.
+    """
+
+    evaluations: np.ndarray
+    status: np.ndarray
+    failed: tuple[int, ...]
+
+
+def make_optimizer(robot: Robot, settings: SLSQPSettings) -> nlopt.opt:
+    """NLopt's SLSQP over ``robot``'s joints; unlimited joints keep their infinite bounds."""
+    opt = nlopt.opt(nlopt.LD_SLSQP, robot.dof)
+    opt.set_lower_bounds(np.asarray(robot.lower, dtype=float))
+    opt.set_upper_bounds(np.asarray(robot.upper, dtype=float))
+    opt.set_ftol_rel(settings.ftol_rel)
+    return opt
+
+
+def solve_frame(
+    opt: nlopt.opt, objective: Objective, frame: Frame, q0: np.ndarray, max_eval: int
+) -> tuple[np.ndarray, int]:
+    """Minimise ``objective`` at ``frame`` from ``q0`` (n,), within the bounds.
+
+    Returns:
+        (n,) the solution and NLopt's result code; on failure (negative code) the best finite
+        configuration evaluated, else ``q0``.
+    """
+    objective.reset(frame)
+    opt.set_min_objective(objective)
+    opt.set_maxeval(max_eval)
+    try:
+        q = opt.optimize(q0)
+        status = opt.last_optimize_result()
+        if not (np.all(np.isfinite(q)) and np.isfinite(opt.last_optimum_value())):
+            q, status = None, nlopt.FAILURE
+    except tuple(NLOPT_ERRORS) as err:
+        q, status = None, next(code for kind, code in NLOPT_ERRORS.items() if isinstance(err, kind))
+    if q is None:
+        q = objective.best if objective.best is not None else q0
+    return np.asarray(q, dtype=float), int(status)
+
+
+def solve(
+    robot: Robot,
+    motion: HumanMotion,
+    targets: HandTargets,
+    placement: Placement,
+    settings: SLSQPSettings = SLSQPSettings(),
+    learned: Learned | None = None,
+    progress: Callable[[int], None] | None = None,
+) -> tuple[np.ndarray, SLSQPInfo]:
+    """Retarget frame by frame.
+
+    Returns:
+        (T, n) joint angles and the per-frame :class:`SLSQPInfo`.
+    """
+    if settings.criteria and learned is None:
+        learned = learn(robot)
+    gradients = dict(gradients=settings.gradients, fd_step=settings.fd_step)
+    objective = Objective(robot, build_losses(robot, settings, learned), **gradients)
+    first = objective
+    if settings.scenario == "relative":
+        first = Objective(robot, build_losses(robot, settings, learned, first=True), **gradients)
+    opt = make_optimizer(robot, settings)
+    evaluations = np.zeros(motion.n_frames, dtype=int)
+    status = np.zeros(motion.n_frames, dtype=int)
+
+    def solve_frame_k(k: int, frame: Frame, q: np.ndarray) -> np.ndarray:
+        obj, max_eval = (first, settings.first_eval) if k == 0 else (objective, settings.max_eval)
+        q, status[k] = solve_frame(opt, obj, frame, q, max_eval)
+        evaluations[k] = obj.evaluations
+        return np.clip(q, robot.lower, robot.upper)
+
+    out = track(robot, motion, targets, placement, solve_frame_k, progress)
+    return out, SLSQPInfo(evaluations, status, tuple(int(k) for k in np.flatnonzero(status < 0)))
+
+
+def slsqp_solver(
+    settings: SLSQPSettings = SLSQPSettings(),
+    learned: Learned | None = None,
+    progress: Callable[[int], None] | None = None,
+):
+    """A solver for :func:`hlik.retarget.retarget` with the given settings."""
+    return as_solver("slsqp", solve, settings, learned, progress)

@@ -1,0 +1,176 @@
+"""JV, the Jacobian velocity baseline: Chan & Dubey's criterion, the null-space projection, tracking,
+unreachable targets, criteria in the null space, every robot and both scenarios."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from hlik import load_motion, load_robot, retarget
+from hlik.criteria.functional import relative_errors
+from hlik.criteria.state import robot_state
+from hlik.demo import demo_motion
+from hlik.learned import learn
+from hlik.metrics import costs
+from hlik.placement import shoulder_placement
+from hlik.solvers.jv import (
+    JVSettings,
+    chan_dubey,
+    jv_solver,
+    limit_weights,
+    null_space_projector,
+    primary,
+    primary_terms,
+    solve,
+)
+from hlik.targets import HandTargets, hand_targets
+from hlik.terms import Frame
+
+ROBOTS = ("armar3", "armar6", "dual_panda")
+
+
+def _within_limits(robot, q):
+    return np.all(q >= robot.lower) and np.all(q <= robot.upper)
+
+
+def _self_targets(robot, motion):
+    """Targets the robot can reach: the TCP poses of its own joint-mapped motion (JM)."""
+    jm = retarget(motion, robot)
+    return shoulder_placement(robot, motion.kinematics()), HandTargets(jm.tcp_pos, jm.tcp_rot)
+
+
+@pytest.mark.parametrize("name", ROBOTS)
+def test_chan_dubey_gradient_is_the_derivative(name):
+    r = load_robot(name)
+    rng = np.random.default_rng(1)
+    lo, hi = np.where(np.isfinite(r.lower), r.lower, -3.0), np.where(np.isfinite(r.upper), r.upper, 3.0)
+    q = lo + (hi - lo) * rng.uniform(0.1, 0.9, r.dof)  # off-centre, clear of the limits
+    _, grad = chan_dubey(q, r.lower, r.upper)
+    eps = 1e-6
+    fd = [
+        (chan_dubey(q + d, r.lower, r.upper)[0] - chan_dubey(q - d, r.lower, r.upper)[0]) / (2 * eps)
+        for d in eps * np.eye(r.dof)
+    ]
+    np.testing.assert_allclose(grad, fd, rtol=1e-5, atol=1e-6)
+
+
+def test_chan_dubey_counts_limited_joints_and_ignores_unlimited_ones():
+    r = load_robot("armar6")  # 6 of its 16 joints have no limits
+    limited = np.isfinite(r.lower)
+    centre = (np.where(limited, r.lower, 0.0) + np.where(limited, r.upper, 0.0)) / 2
+    h, grad = chan_dubey(centre, r.lower, r.upper)
+    assert np.count_nonzero(~limited) == 6
+    assert h == pytest.approx(np.count_nonzero(limited)) and np.allclose(grad, 0.0)
+    turned = np.where(limited, centre, 2.5)  # unlimited joints anywhere: no cost, no gradient
+    assert chan_dubey(turned, r.lower, r.upper)[0] == pytest.approx(h)
+    moved = centre + np.where(limited, 0.3 * (r.upper - centre), 1.0)
+    h_moved, grad_moved = chan_dubey(moved, r.lower, r.upper)
+    assert h_moved > h and np.all(grad_moved[~limited] == 0.0) and np.all(grad_moved[limited] > 0.0)
+    at_limit = chan_dubey(np.where(limited, r.upper, 0.0), r.lower, r.upper)
+    assert np.isfinite(at_limit[0]) and np.all(np.isfinite(at_limit[1]))  # clipped onto a limit
+
+
+def test_limit_weights_only_for_joints_moving_toward_a_limit():
+    previous = np.array([1.0, -2.0, 0.5, 0.0])
+    grad = np.array([3.0, -1.0, -0.5, 0.0])  # grew, fell, same magnitude, unlimited
+    np.testing.assert_allclose(limit_weights(grad, previous), [4.0, 1.0, 1.5, 1.0])
+
+
+@pytest.mark.parametrize("scenario", ["pose", "relative"])
+@pytest.mark.parametrize("name", ROBOTS)
+def test_null_space_step_leaves_the_primary_task_alone(name, scenario):
+    """J N g = 0 to first order: the secondary task cannot move the targets."""
+    r = load_robot(name)
+    rng = np.random.default_rng(2)
+    q = np.clip(r.home + rng.normal(0, 0.3, r.dof), r.lower, r.upper)
+    s = robot_state(r, q, jacobians=True)
+    frame = Frame(
+        s.tcp[0] + 0.1, s.tcp_rot[0], q, np.zeros(2), np.tile(np.eye(3), (2, 1, 1)), np.tile(q, (3, 1)), 0.01
+    )
+    _, jac = primary(primary_terms(scenario), s, frame, 0.2)
+    proj = null_space_projector(jac)
+    g = rng.normal(size=r.dof)
+    assert np.linalg.norm(jac @ proj @ g) < 1e-12 * np.linalg.norm(jac) * np.linalg.norm(g)
+    np.testing.assert_allclose(proj @ proj, proj, atol=1e-12)
+    assert round(np.trace(proj)) == r.dof - jac.shape[0]  # null space of a full-rank J
+    double = np.vstack([jac, jac[:3]])  # rank-deficient: still projects onto the null space
+    assert np.linalg.norm(double @ null_space_projector(double) @ g) < 1e-12 * np.linalg.norm(g)
+
+
+def test_tracks_reachable_kit_targets_on_armar3(takes):
+    """Measured on the Close take, 2.0-2.5 s at 100 Hz: median fPOS 1e-7 m, max 5e-7 m, median 15
+    steps per frame; the bounds leave two orders of magnitude."""
+    r = load_robot("armar3")
+    motion = load_motion(takes[0], rate=100).crop(2.0, 2.5)
+    human = motion.kinematics()
+    placement = shoulder_placement(r, human)
+    targets = hand_targets(human, placement)
+    settings = JVSettings()
+    q, steps = solve(r, motion, targets, placement, settings)
+    fpos = np.linalg.norm(robot_state(r, q).tcp - targets.pos, axis=-1).mean(axis=-1)
+    assert np.all(np.isfinite(q)) and _within_limits(r, q)
+    assert np.median(fpos) < 1e-5 and np.max(fpos) < 1e-4
+    assert np.median(steps[1:]) < settings.max_iter
+
+
+def test_unreachable_targets_give_finite_motion_and_report_the_error():
+    r = load_robot("armar3")
+    motion = demo_motion().crop(0, 0.5)
+    human = motion.kinematics()
+    placement = shoulder_placement(r, human)
+    far = hand_targets(human, placement)
+    far = replace(far, pos=far.pos + np.array([0.0, 3.0, 0.0]))  # 3 m in front of the robot
+    settings = JVSettings(max_iter=30)
+    q, steps = solve(r, motion, far, placement, settings)
+    assert np.all(np.isfinite(q)) and _within_limits(r, q)
+    fpos = np.linalg.norm(robot_state(r, q).tcp - far.pos, axis=-1).mean(axis=-1)
+    assert np.all(fpos > 2.0)  # reported, not hidden
+    assert np.all(steps <= 10 * settings.max_iter)
+
+
+@pytest.mark.parametrize("scenario", ["pose", "relative"])
+@pytest.mark.parametrize("name", ROBOTS)
+def test_every_robot_and_scenario(name, scenario):
+    """Self-made (reachable) targets: the tracked quantity converges, within the limits."""
+    r = load_robot(name)
+    motion = demo_motion().crop(0, 1.0).resample(50.0)
+    placement, targets = _self_targets(r, motion)
+    frames = []
+    settings = JVSettings(scenario=scenario)
+    q, _ = solve(r, motion, targets, placement, settings, progress=frames.append)
+    assert frames == list(range(motion.n_frames))
+    assert np.all(np.isfinite(q)) and _within_limits(r, q)
+    s = robot_state(r, q)
+    if scenario == "pose":
+        tracked = np.linalg.norm(s.tcp - targets.pos, axis=-1).mean(axis=-1)
+    else:
+        tracked, _ = relative_errors(s.tcp, s.tcp_rot, targets.pos, targets.rot)
+    assert np.median(tracked) < 1e-3 and np.max(tracked) < 1e-2, (np.median(tracked), np.max(tracked))
+
+
+def test_criterion_in_the_null_space_lowers_its_cost(takes):
+    """HJA^r on ARMAR-6. In the pose scenario (4-dim null space) Chan & Dubey's H with gamma 4
+    outweighs the criterion by orders of magnitude, so H is left out there; the relative scenario
+    (10-dim null space) keeps the defaults."""
+    r = load_robot("armar6")
+    learned = learn(r)
+    motion = load_motion(takes[0], rate=100).crop(2.0, 2.5)
+    for base in (JVSettings(jla_gamma=0.0), JVSettings(scenario="relative")):
+        with_hja = replace(base, criteria=("HJA_r",))
+        plain = costs(retarget(motion, r, jv_solver(base, learned)), r, learned)
+        hja = costs(retarget(motion, r, jv_solver(with_hja, learned)), r, learned)
+        assert np.mean(hja["HJA_r"]) < 0.95 * np.mean(plain["HJA_r"]), base.scenario
+        tracked = "fPOS" if base.scenario == "pose" else "fPOS_off"
+        assert np.median(hja[tracked]) < 0.01
+
+
+def test_named_solver_and_settings():
+    r = load_robot("dual_panda")
+    motion = demo_motion().crop(0, 0.2)
+    assert jv_solver().__name__ == "jv"
+    traj = retarget(motion, r, "jv")
+    assert traj.solver == "jv" and np.all(np.isfinite(traj.q))
+    with pytest.raises(ValueError, match="scenario"):
+        solve(r, motion, traj.targets, traj.placement, JVSettings(scenario="hands"))

@@ -1,0 +1,117 @@
+"""Task-stack files: the bundled stacks, their settings, and one-line errors for bad files."""
+
+from __future__ import annotations
+
+import pytest
+from typer.testing import CliRunner
+
+from hlik.cli import app
+from hlik.criteria.unified import GAMMA
+from hlik.errors import HlikError
+from hlik.paths import tasks_dir
+from hlik.solvers.qp import QPSettings
+from hlik.stack import bundled_stacks, load_stack
+
+
+def test_bundled_stacks_load_for_every_solver():
+    assert set(bundled_stacks()) >= {"ee_pose", "relative_pose"}
+    for name in bundled_stacks():
+        stack = load_stack(tasks_dir() / f"{name}.toml")
+        assert dict(stack.gamma) == dict(GAMMA)  # the files spell out Table II
+        for solver in ("qp", "jv", "slsqp"):
+            settings = stack.settings(solver)
+            assert settings.scenario == stack.scenario and settings.criteria == ()
+
+
+def test_ee_pose_stack_is_the_qp_default():
+    """The file a user copies and the defaults of the Python API are the same stack."""
+    assert load_stack("ee_pose").settings("qp") == QPSettings()
+
+
+def test_relative_stack_scales_criteria_by_ten():
+    pose, relative = load_stack("ee_pose"), load_stack("relative_pose")
+    assert relative.scenario == "relative"
+    ratio = relative.settings("qp").criterion_cost / pose.settings("qp").criterion_cost
+    assert ratio == pytest.approx(10.0)
+
+
+def test_with_criteria_replaces_the_list():
+    stack = load_stack("ee_pose").with_criteria(["SYN", "HJA_r"])
+    assert stack.settings("qp").criteria == ("SYN", "HJA_r")
+    with pytest.raises(HlikError, match="unknown criteria FOO"):
+        stack.with_criteria(["FOO"])
+
+
+@pytest.mark.parametrize(
+    "text, problem",
+    [
+        ("scenario = 'sideways'", "unknown scenario 'sideways'"),
+        ("criteria = ['SYN', 'XYZ']", "unknown criteria XYZ"),
+        ("criteria = 'SYN'", "criteria must be a list"),
+        ("[qp]\nposition_cost = 'high'", "qp.position_cost must be a number"),
+        ("[qp]\nspeed = 1.0", "unknown key 'speed' in [qp]"),
+        ("[gamma]\nSYN = true", "gamma.SYN must be a number"),
+        ("colour = 'red'", "unknown key 'colour' in the top level"),
+        ("scenario = ", "not valid TOML"),
+    ],
+)
+def test_bad_stack_files_name_the_file_and_the_problem(tmp_path, text, problem):
+    path = tmp_path / "bad.toml"
+    path.write_text(text)
+    with pytest.raises(HlikError, match="bad.toml") as err:
+        load_stack(path)
+    assert problem in str(err.value) and "\n" not in str(err.value)
+
+
+def test_missing_stack_lists_the_bundled_ones(tmp_path):
+    with pytest.raises(HlikError, match="no such stack file.*ee_pose"):
+        load_stack(tmp_path / "nothing.toml")
+
+
+def test_cli_rejects_a_bad_stack_before_solving(tmp_path):
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[qp]\nspeed = 1.0")
+    out = tmp_path / "x.rrd"
+    result = CliRunner().invoke(app, ["run", "--solver", "qp", "--stack", str(bad), "--out", str(out)])
+    assert result.exit_code == 2
+    assert "bad.toml" in result.stderr and len(result.stderr.strip().splitlines()) == 1
+    assert not out.exists() and not out.with_suffix(".npz").exists()
+
+
+def test_stack_slsqp_settings_are_the_papers():
+    from hlik.solvers.slsqp import SLSQPSettings
+
+    assert load_stack("ee_pose").settings("slsqp") == SLSQPSettings()
+    assert load_stack("relative_pose").settings("slsqp") == SLSQPSettings.relative()
+
+
+@pytest.mark.parametrize(
+    "solver, extra",
+    [
+        ("jv", ["--criteria", "HJA_r"]),
+        ("slsqp", ["--criteria", "SYN,HJA_r"]),
+        ("slsqp", ["--gradients", "fd"]),
+        ("qp", ["--stack", "relative_pose", "--criteria", "SYN"]),
+    ],
+)
+def test_cli_runs_every_solver_from_a_stack(takes, tmp_path, solver, extra):
+    from hlik.trajectory import load_trajectory
+
+    out = tmp_path / "r.rrd"
+    args = ["run", str(takes[4]), "--rate", "10", "--robot", "armar3", "--solver", solver, *extra]
+    result = CliRunner().invoke(app, [*args, "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    traj = load_trajectory(out.with_suffix(".npz"))
+    assert traj.solver == solver and out.is_file()
+    assert ("(relative)" in result.stdout) == ("relative_pose" in extra)  # scored as its stack says
+
+
+def test_cli_rejects_fd_gradients_outside_slsqp():
+    result = CliRunner().invoke(app, ["run", "--solver", "qp", "--gradients", "fd"])
+    assert result.exit_code == 2 and "--gradients fd is for --solver slsqp" in result.stderr
+
+
+def test_stack_jv_settings_are_the_defaults():
+    from hlik.solvers.jv import JVSettings
+
+    assert load_stack("ee_pose").settings("jv") == JVSettings()
