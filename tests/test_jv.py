@@ -22,11 +22,10 @@ from hlik.solvers.jv import (
     limit_weights,
     null_space_projector,
     primary,
-    primary_terms,
     solve,
 )
 from hlik.targets import HandTargets, hand_targets
-from hlik.terms import Frame
+from hlik.terms import Frame, target_terms
 
 ROBOTS = ("armar3", "armar6", "dual_panda")
 
@@ -89,7 +88,7 @@ def test_null_space_step_leaves_the_primary_task_alone(name, scenario):
     frame = Frame(
         s.tcp[0] + 0.1, s.tcp_rot[0], q, np.zeros(2), np.tile(np.eye(3), (2, 1, 1)), np.tile(q, (3, 1)), 0.01
     )
-    _, jac = primary(primary_terms(scenario), s, frame, 0.2)
+    _, jac = primary(target_terms(scenario), s, frame, 0.2)
     proj = null_space_projector(jac)
     g = rng.normal(size=r.dof)
     assert np.linalg.norm(jac @ proj @ g) < 1e-12 * np.linalg.norm(jac) * np.linalg.norm(g)

@@ -57,7 +57,7 @@ class Stack:
         return cls(
             criteria=self.criteria,
             scenario=self.scenario,
-            gamma=MappingProxyType(dict(self.gamma)),
+            gamma=self.gamma,
             **self.solvers.get(solver, {}),
         )
 

@@ -148,6 +148,16 @@ class RelativeOrientation(Term):
         return block_norms(e, 1)
 
 
+def target_terms(scenario: str) -> tuple[Term, Term]:
+    """The position and orientation terms ``scenario`` tracks: the TCP poses (``pose``) or the
+    relative pose of the hands (``relative``, paper Eqs. 3-4)."""
+    if scenario == "pose":
+        return Position(), Orientation()
+    if scenario == "relative":
+        return RelativePosition(), RelativeOrientation()
+    raise ValueError(f"scenario must be 'pose' or 'relative', got {scenario!r}")
+
+
 def _skew(v: np.ndarray) -> np.ndarray:
     return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
 

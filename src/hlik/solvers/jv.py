@@ -32,11 +32,10 @@ from hlik.targets import HandTargets
 from hlik.terms import (
     Frame,
     Orientation,
-    Position,
     RelativeOrientation,
-    RelativePosition,
     Term,
     criterion_term,
+    target_terms,
 )
 
 
@@ -171,15 +170,6 @@ def bound(v: np.ndarray, limit: float) -> np.ndarray:
     return v * (limit / largest) if largest > limit else v
 
 
-def primary_terms(scenario: str) -> list[Term]:
-    """The primary task's terms of ``scenario`` (``pose`` or ``relative``)."""
-    if scenario == "relative":
-        return [RelativePosition(), RelativeOrientation()]
-    if scenario == "pose":
-        return [Position(), Orientation()]
-    raise ValueError(f"scenario must be 'pose' or 'relative', got {scenario!r}")
-
-
 def criterion_terms(robot: Robot, settings: JVSettings, learned: Learned | None) -> list[Term]:
     """The criteria of ``settings``, each with its null-space weight w_i as ``cost``."""
     terms = []
@@ -257,7 +247,7 @@ def solve(
     """
     if settings.criteria and learned is None:
         learned = learn(robot)
-    tasks, first = primary_terms(settings.scenario), primary_terms("pose")
+    tasks, first = list(target_terms(settings.scenario)), list(target_terms("pose"))
     criteria = criterion_terms(robot, settings, learned)
     steps = np.zeros(motion.n_frames, dtype=int)
     data = mujoco.MjData(robot.model)

@@ -28,13 +28,10 @@ from hlik.solvers.frames import as_solver, iterate, track
 from hlik.targets import HandTargets
 from hlik.terms import (
     Frame,
-    Orientation,
-    Position,
-    RelativeOrientation,
-    RelativePosition,
     Term,
     criterion_term,
     smoothness_terms,
+    target_terms,
 )
 
 
@@ -85,15 +82,13 @@ def build_terms(
 
     ``scenario`` overrides ``settings.scenario`` (the first frame of ``relative`` uses ``pose``).
     """
-    if (scenario or settings.scenario) == "relative":
-        terms = target_terms(
-            RelativePosition(),
-            RelativeOrientation(),
-            settings.relative_position_cost,
-            settings.relative_orientation_cost,
-        )
+    scenario = scenario or settings.scenario
+    position, orientation = target_terms(scenario)
+    if scenario == "relative":
+        position.cost, orientation.cost = settings.relative_position_cost, settings.relative_orientation_cost
     else:
-        terms = target_terms(Position(), Orientation(), settings.position_cost, settings.orientation_cost)
+        position.cost, orientation.cost = settings.position_cost, settings.orientation_cost
+    terms = [t for t in (position, orientation) if t.cost > 0]
     terms += smoothness_terms(robot.dof, settings.velocity, settings.acceleration, settings.jerk)
     for name in settings.criteria:
         term = criterion_term(name, robot, learned)
@@ -101,12 +96,6 @@ def build_terms(
         term.cost = np.sqrt(settings.gamma.get(name, 1.0) * settings.criterion_cost / len(settings.criteria))
         terms.append(term)
     return terms
-
-
-def target_terms(position: Term, orientation: Term, position_cost: float, orientation_cost: float):
-    """The target terms with non-zero cost."""
-    position.cost, orientation.cost = position_cost, orientation_cost
-    return [t for t in (position, orientation) if t.cost > 0]
 
 
 class Assembly:
