@@ -34,7 +34,7 @@ DEFAULT = "jm,jv,qp,qp+SYN,qp+HJA_r,slsqp,slsqp+SYN,slsqp+HJA_r"
 
 def reachable(robot: hlik.Robot, traj: hlik.Trajectory) -> np.ndarray:
     """(T, 2) True where the hand target is within 95 % of the arm's reach of the shoulder."""
-    home = robot_state(robot, robot.home).sites[0]
+    home = robot_state(robot, robot.home).sites[0, :, :4]  # shoulder, elbow, wrist, TCP
     reach = np.sum(np.linalg.norm(np.diff(home, axis=1), axis=-1), axis=-1)  # (2,)
     shoulder = robot_state(robot, traj.q).shoulder
     return np.linalg.norm(traj.targets.pos - shoulder, axis=-1) < 0.95 * reach

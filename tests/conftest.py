@@ -42,3 +42,20 @@ def _private_cache(tmp_path_factory):
     with pytest.MonkeyPatch.context() as mp:
         mp.setenv("HLIK_CACHE", str(tmp_path_factory.mktemp("hlik-cache")))
         yield
+
+
+@pytest.fixture(scope="session")
+def reachable_targets():
+    """``f(robot, motion) -> HandTargets``: the robot's TCP poses along the clipped joint mapping.
+
+    Human-like and reachable by construction, unlike the recorded hand poses, which a robot's joint
+    limits (ARMAR-III's forearm, for one) may put out of reach.
+    """
+    from hlik.robot import tcp_poses
+    from hlik.solvers.jm import joint_mapping
+    from hlik.targets import HandTargets
+
+    def make(robot, motion):
+        return HandTargets(*tcp_poses(robot, joint_mapping(robot, motion)))
+
+    return make

@@ -98,14 +98,14 @@ def test_null_space_step_leaves_the_primary_task_alone(name, scenario):
     assert np.linalg.norm(double @ null_space_projector(double) @ g) < 1e-12 * np.linalg.norm(g)
 
 
-def test_tracks_reachable_kit_targets_on_armar3(takes):
-    """Measured on the Close take, 2.0-2.5 s at 100 Hz: median fPOS 1e-7 m, max 5e-7 m, median 15
-    steps per frame; the bounds leave two orders of magnitude."""
+def test_tracks_reachable_kit_targets_on_armar3(takes, reachable_targets):
+    """Targets: ARMAR-III's own TCP along the clipped joint mapping of the Close take, 2.0-2.5 s at
+    100 Hz (reachable by construction); JV starts from its own initial pose, not from the mapping."""
     r = load_robot("armar3")
     motion = load_motion(takes[0], rate=100).crop(2.0, 2.5)
     human = motion.kinematics()
     placement = shoulder_placement(r, human)
-    targets = hand_targets(human, placement)
+    targets = reachable_targets(r, motion)
     settings = JVSettings()
     q, steps = solve(r, motion, targets, placement, settings)
     fpos = np.linalg.norm(robot_state(r, q).tcp - targets.pos, axis=-1).mean(axis=-1)

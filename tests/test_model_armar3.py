@@ -196,8 +196,10 @@ def test_geoms_visual_primitives(model):
     assert model.ngeom > 0
     for g in range(model.ngeom):
         assert int(model.geom_type[g]) in prim
-        assert model.geom_contype[g] == 0 and model.geom_conaffinity[g] == 0
-        assert model.geom_group[g] == 1
+        if model.geom_group[g] == 1:  # visual; collision geoms (group 3): tests/test_collision.py
+            assert model.geom_contype[g] == 0 and model.geom_conaffinity[g] == 0
+        else:
+            assert model.geom_group[g] == 3
 
 
 # ---------------------------------------------------------------- hip, shoulder height
@@ -321,9 +323,11 @@ def test_sites_at_joint_centres(model):
 
 
 def test_tcp_frame_convention(model):
-    """z = approach (+y at zero pose), x = palm normal (medial: thumbs up), y = z x x."""
+    """z = approach (+y at zero pose), x = palm normal, y = z x x. The Simox hand's fingers curl
+    towards -x of its base frame (EndArm), so at the zero pose the palms face up, 15 deg medially."""
     data = _fk(model)
-    for side, palm in (("left", (1, 0, 0)), ("right", (-1, 0, 0))):
+    c, s = np.cos(np.radians(15)), np.sin(np.radians(15))
+    for side, palm in (("left", (s, 0, c)), ("right", (-s, 0, c))):
         _, rot = _site(model, data, f"{side}_tcp")
         np.testing.assert_allclose(rot[:, 2], [0, 1, 0], atol=1e-9)
         np.testing.assert_allclose(rot[:, 0], palm, atol=1e-9)

@@ -35,9 +35,13 @@ FK_LEFT = {
 }
 TCP_BEYOND_PALM = 0.07  # §9
 PALM_FROM_WRIST = 0.14  # IAI hand_joint
-TORSO_Z = 1.30
+TORSO_Z = 1.195  # top of the URDF torso joint's range (0.830..1.195 m)
 TOL = 2e-3
-RZ_PI = np.diag([-1.0, -1.0, 1.0])
+MIRROR = np.diag([-1.0, 1.0, 1.0])  # sagittal plane x = 0
+# q_right = MIRROR_SIGN * q_left mirrors the pose (ArmarX home pose signs, §3.1)
+MIRROR_SIGN = np.array([-1, -1, 1, -1, 1, -1, -1, 1.0])
+HOME_L = [0.0368, 0.8399, 0.1120, 0.1789, 1.3174, -0.0780, 0.0814, 0.1718]
+HOME_R = [-0.0368, -0.8394, 0.1116, -0.1790, 1.3195, 0.0783, -0.0811, 0.1719]
 
 
 @pytest.fixture(scope="module")
@@ -91,16 +95,6 @@ def random_q(model, rng):
     return q
 
 
-def same_q_both_arms(model, rng):
-    """Random joint values, identical for Arm L and Arm R joint i."""
-    left = random_q(model, rng)
-    values = {}
-    for lj, rj in zip(LEFT, RIGHT, strict=True):
-        v = left[model.jnt_qposadr[model.joint(lj).id]]
-        values[lj] = values[rj] = v
-    return qpos_of(model, values)
-
-
 # ---------------------------------------------------------------- structure
 
 
@@ -126,9 +120,9 @@ def test_base_and_torso_fixed(model, data):
     fk(model, data)
     np.testing.assert_allclose(data.xpos[base.id], 0.0, atol=1e-12)
     np.testing.assert_allclose(torso(model, data), [0, 0, TORSO_Z], atol=1e-12)
-    # shoulders at about 1.48 m above the floor
+    # shoulders at about 1.37 m above the floor
     for side in ("left", "right"):
-        assert site(model, data, f"{side}_shoulder")[2] == pytest.approx(1.478, abs=TOL)
+        assert site(model, data, f"{side}_shoulder")[2] == pytest.approx(1.373, abs=TOL)
 
 
 def test_limits(model):
@@ -186,28 +180,33 @@ def test_zero_pose_axes(model, data):
     np.testing.assert_allclose(wri2, [np.sqrt(3) / 2, 0, -0.5], atol=1e-6)
 
 
-def test_right_is_left_rotated_about_z(model, data):
-    """Identical arm modules: FK_right(q) = Rz(pi) FK_left(q) at the zero pose and at random q."""
+def test_right_is_mirror_of_left(model, data):
+    """As on the real robot: FK_right(MIRROR_SIGN q) = mirror of FK_left(q), exactly, for any q."""
     rng = np.random.default_rng(6)
-    for q in [None] + [same_q_both_arms(model, rng) for _ in range(20)]:
+    lq = model.jnt_qposadr[[model.joint(j).id for j in LEFT]]
+    rq = model.jnt_qposadr[[model.joint(j).id for j in RIGHT]]
+    for k in range(21):
+        q = np.zeros(model.nq)
+        if k:
+            q[lq] = rng.uniform(-1.2, 1.2, 8)
+        q[rq] = MIRROR_SIGN * q[lq]
         fk(model, data, q)
-        t = torso(model, data)
-        for lj, rj in zip(LEFT, RIGHT, strict=True):
+        for seg in ("shoulder", "elbow", "wrist", "tcp", "hand_mount"):
             np.testing.assert_allclose(
-                anchor(model, data, rj) - t, RZ_PI @ (anchor(model, data, lj) - t), atol=1e-9
-            )
-            ax_l, ax_r = axis(model, data, lj), axis(model, data, rj)
-            np.testing.assert_allclose(ax_r, RZ_PI @ ax_l, atol=1e-9)
-        for seg in ("shoulder", "elbow", "wrist", "tcp"):
-            np.testing.assert_allclose(
-                site(model, data, f"right_{seg}") - t,
-                RZ_PI @ (site(model, data, f"left_{seg}") - t),
-                atol=1e-9,
+                site(model, data, f"right_{seg}"), MIRROR @ site(model, data, f"left_{seg}"), atol=1e-9
             )
         left, right = site_mat(model, data, "left_tcp"), site_mat(model, data, "right_tcp")
-        np.testing.assert_allclose(right[:, 2], RZ_PI @ left[:, 2], atol=1e-9)  # approach
-        # the hands themselves are mirror images: the palm normal is flipped w.r.t. the rotation
-        np.testing.assert_allclose(right[:, 0], -RZ_PI @ left[:, 0], atol=1e-9)
+        # approach and palm normal are vectors: mirrored; y = z x x flips
+        np.testing.assert_allclose(right, MIRROR @ left @ np.diag([1.0, -1.0, 1.0]), atol=1e-9)
+
+
+def test_armarx_home_is_mirror_symmetric(model, data):
+    """The published ArmarX home pose (left and right values as printed) is a mirror image to < 2 mm."""
+    values = dict(zip(LEFT, HOME_L)) | dict(zip(RIGHT, HOME_R))
+    fk(model, data, qpos_of(model, values))
+    for seg in ("elbow", "wrist", "tcp"):
+        d = site(model, data, f"right_{seg}") - MIRROR @ site(model, data, f"left_{seg}")
+        assert np.linalg.norm(d) < 2e-3, seg
 
 
 # ---------------------------------------------------------------- TCP frame
@@ -272,9 +271,8 @@ def test_toml_home(desc, model, data):
         if model.jnt_limited[jid]:
             lo, hi = model.jnt_range[jid]
             assert lo <= v <= hi, j
-    np.testing.assert_allclose(
-        [home[j] for j in LEFT], [0.0368, 0.8399, 0.1120, 0.1789, 1.3174, -0.0780, 0.0814, 0.1718]
-    )
+    np.testing.assert_allclose([home[j] for j in LEFT], HOME_L)
+    np.testing.assert_allclose([home[j] for j in RIGHT], HOME_R)
     # at home the left hand is below the shoulder, the palm normal points medially (+x)
     fk(model, data, qpos_of(model, home))
     assert site(model, data, "left_tcp")[2] < site(model, data, "left_shoulder")[2] - 0.5

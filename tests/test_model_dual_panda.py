@@ -148,7 +148,8 @@ def test_root_body_and_sites(model):
             i = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, f"{s}_{seg}")
             assert i >= 0
             assert m.body(m.site_bodyid[i]).name == f"{s}_{body}"
-    assert all(m.geom_contype == 0) and all(m.geom_conaffinity == 0)
+    visual = m.geom_group == 1  # collision geoms (group 3): tests/test_collision.py
+    assert all(m.geom_contype[visual] == 0) and all(m.geom_conaffinity[visual] == 0)
 
 
 @pytest.mark.parametrize("side", SIDES)

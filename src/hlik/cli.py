@@ -352,6 +352,10 @@ def calibrate(
     console.print(table)
     res = ", ".join(f"{s} {np.degrees(v):.1f}°" for s, v in cal.residual.items())
     console.print(f"hand-frame error of the mapped default pose: {res}")
+    offsets = [m for m in cal.mapping.joints if m.offset]
+    if offsets:
+        found = ", ".join(f"{m.joint} {m.offset.gain:+.3f}·{m.offset.mmm}" for m in offsets)
+        console.print(f"dynamic offsets: {found} (paper, ARMAR-6 Sho2: +{0.55 / np.pi:.3f}·s_x)")
     stored = r.mapping
     same = all(_close(stored.get(m.joint), m) for m in cal.mapping.joints)
     console.print(

@@ -29,7 +29,7 @@ from hlik.solvers.jm import joint_mapping
 
 RATE = 100.0
 TRIM = 1.0  # s dropped at each end of a recording
-CACHE_VERSION = "learned/2"
+CACHE_VERSION = "learned/3"
 
 
 @dataclass(frozen=True, eq=False)

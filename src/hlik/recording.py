@@ -34,7 +34,7 @@ from hlik.fk import body_poses
 from hlik.human import human_model, qpos_trajectory
 from hlik.motion import ObjectMotion
 from hlik.placement import Placement
-from hlik.robot import SIDES, Robot
+from hlik.robot import COLLISION_GROUP, SIDES, Robot
 from hlik.trajectory import Trajectory
 
 LAYOUTS = ("side", "overlay")
@@ -143,7 +143,12 @@ def _log_model(rec, root: str, model: mujoco.MjModel, qpos: np.ndarray, index: l
     pos, quat = body_poses(model, qpos)
     for body in range(1, model.nbody):
         entity = f"{root}/{_entity(model.body(body).name) or f'body{body}'}"
-        geoms = [g for g in range(model.ngeom) if model.geom_bodyid[g] == body]
+        # collision volumes are for the solvers, not the eye
+        geoms = [
+            g
+            for g in range(model.ngeom)
+            if model.geom_bodyid[g] == body and model.geom_group[g] != COLLISION_GROUP
+        ]
         if not geoms:
             continue
         for archetype_name, archetype in _geometry(model, geoms, alpha).items():

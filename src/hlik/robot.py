@@ -21,7 +21,10 @@ else:  # pragma: no cover
     import tomli as tomllib
 
 SIDES = ("left", "right")
-SITES = ("shoulder", "elbow", "wrist", "tcp")
+VISUAL_GROUP, COLLISION_GROUP = 1, 3  # MJCF geom groups: what a viewer draws, what collides
+# Per arm: joint centres, the tracking TCP, and the frame whose velocity manipulability MAN^r reads
+# (``{side}_{Robot.manipulability_site}``; robots/README.md).
+SITES = ("shoulder", "elbow", "wrist", "tcp", "manipulability")
 
 
 @dataclass(frozen=True, eq=False)
@@ -39,6 +42,11 @@ class Robot:
         lower, upper: (n,) joint limits in rad; ``-inf``/``inf`` for unlimited joints.
         home: (n,) home configuration in rad.
         mapping: The MMM -> robot joint mapping of the arm joints.
+        velocity_limit: (n,) largest joint speed in rad/s, aligned with ``joint_names``.
+        velocity_source: Where ``velocity_limit`` comes from (datasheet, model file, assumption).
+        manipulability_site: Site suffix of the manipulability frame (``{side}_<suffix>``).
+        manipulability_joints: Non-arm joints that count in each arm's manipulability chain,
+            proximal to the arm (ARMAR-III's hip, as in the paper's IK).
     """
 
     name: str
@@ -52,6 +60,10 @@ class Robot:
     upper: np.ndarray
     home: np.ndarray
     mapping: JointMapping
+    velocity_limit: np.ndarray
+    velocity_source: str = ""
+    manipulability_site: str = "tcp"
+    manipulability_joints: tuple[str, ...] = ()
 
     @property
     def dof(self) -> int:
@@ -68,13 +80,18 @@ class Robot:
         return np.array([self.joint_names.index(j) for j in joints], dtype=int)
 
     def site_id(self, side: str, site: str) -> int:
-        """MuJoCo id of ``{side}_{site}`` (site in shoulder, elbow, wrist, tcp)."""
-        return self.model.site(f"{side}_{site}").id
+        """MuJoCo id of ``{side}_{site}`` (site in :data:`SITES`; ``manipulability`` is the robot's)."""
+        return self.model.site(f"{side}_{_suffix(self, site)}").id
 
     @cached_property
     def site_ids(self) -> np.ndarray:
-        """(2, 4) MuJoCo ids of the sites, arms in :data:`SIDES` order, sites in :data:`SITES` order."""
+        """(2, 5) MuJoCo ids of the sites, arms in :data:`SIDES` order, sites in :data:`SITES` order."""
         return np.array([[self.site_id(side, site) for site in SITES] for side in SIDES])
+
+    @cached_property
+    def manipulability_chain(self) -> np.ndarray:
+        """(2, k) configuration indices of each arm's manipulability chain, proximal to distal."""
+        return np.array([self.index(self.manipulability_joints + self.arm_joints[s]) for s in SIDES])
 
     def __repr__(self) -> str:
         arms = "+".join(str(len(self.arm_joints[s])) for s in SIDES)
@@ -83,6 +100,33 @@ class Robot:
             f"extra={list(self.extra_joints)}, unlimited={len(self.unlimited)}, "
             f"mjcf={self.mjcf.name!r})"
         )
+
+
+def self_contacts(
+    robot: Robot, q: np.ndarray, data: mujoco.MjData | None = None
+) -> list[tuple[str, str, float]]:
+    """Pairs of robot bodies whose collision geoms touch or overlap at configuration ``q`` (n,).
+
+    Collision geoms are the model's geoms with non-zero ``contype``/``conaffinity`` (group
+    :data:`COLLISION_GROUP`); pairs the model excludes (adjacent links, a hand's own parts) never count.
+
+    Returns:
+        (body, body, signed distance in m, <= 0) per contact, deepest first.
+    """
+    model = robot.model
+    data = mujoco.MjData(model) if data is None else data
+    data.qpos[:] = q
+    mujoco.mj_kinematics(model, data)
+    mujoco.mj_collision(model, data)
+    found = []
+    for c in data.contact[: data.ncon]:
+        b1, b2 = (model.body(model.geom_bodyid[g]).name for g in c.geom)
+        found.append((b1, b2, float(c.dist)))
+    return sorted(found, key=lambda c: c[2])
+
+
+def _suffix(robot: Robot, site: str) -> str:
+    return robot.manipulability_site if site == "manipulability" else site
 
 
 def tcp_poses(robot: Robot, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -131,15 +175,24 @@ def _build(path: Path, desc: dict) -> Robot:
     unknown = [j for j in listed if j not in names]
     if unknown:
         raise RobotError(f"{path}: joints not in the model: {', '.join(unknown)}")
+    manip = desc.get("manipulability", {})
+    manip_site = str(manip.get("site", "tcp"))
+    manip_joints = tuple(manip.get("joints", ()))
     for side in SIDES:
         for site in SITES:
-            if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, f"{side}_{site}") < 0:
-                raise RobotError(f"{mjcf}: missing site {side}_{site}")
+            name = f"{side}_{manip_site if site == 'manipulability' else site}"
+            if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, name) < 0:
+                raise RobotError(f"{mjcf}: missing site {name}")
+    arm_set = {j for s in SIDES for j in arms[s]}
+    bad = [j for j in manip_joints if j not in names or j in arm_set]
+    if bad:
+        raise RobotError(f"{path}: [manipulability] joints must be non-arm model joints: {', '.join(bad)}")
     limited = model.jnt_limited.astype(bool)
     lower = np.where(limited, model.jnt_range[:, 0], -np.inf)
     upper = np.where(limited, model.jnt_range[:, 1], np.inf)
     home_table = desc.get("home", {})
     home = np.array([float(home_table.get(n, 0.0)) for n in names])
+    velocity, velocity_source = _velocity_limits(path, desc, names)
     mapping = JointMapping.from_table(desc.get("mapping", {}))
     missing = [j for s in SIDES for j in arms[s] if j not in {m.joint for m in mapping.joints}]
     if missing:
@@ -156,4 +209,28 @@ def _build(path: Path, desc: dict) -> Robot:
         upper=upper,
         home=home,
         mapping=mapping,
+        velocity_limit=velocity,
+        velocity_source=velocity_source,
+        manipulability_site=manip_site,
+        manipulability_joints=manip_joints,
     )
+
+
+def _velocity_limits(path: Path, desc: dict, names: tuple[str, ...]) -> tuple[np.ndarray, str]:
+    """(n,) joint speed limits in rad/s from ``[velocity_limits]`` (every joint, positive, finite)."""
+    table = dict(desc.get("velocity_limits", {}))
+    source = str(table.pop("source", ""))
+    missing = [n for n in names if n not in table]
+    if missing:
+        raise RobotError(f"{path}: [velocity_limits] has no value for: {', '.join(missing)}")
+    unknown = [n for n in table if n not in names]
+    if unknown:
+        raise RobotError(f"{path}: [velocity_limits] names joints not in the model: {', '.join(unknown)}")
+    try:
+        limits = np.array([float(table[n]) for n in names])
+    except (TypeError, ValueError):
+        raise RobotError(f"{path}: [velocity_limits] values must be numbers in rad/s") from None
+    if not np.all(np.isfinite(limits) & (limits > 0)):
+        bad = [n for n, v in zip(names, limits) if not (np.isfinite(v) and v > 0)]
+        raise RobotError(f"{path}: [velocity_limits] must be positive and finite: {', '.join(bad)}")
+    return limits, source

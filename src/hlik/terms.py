@@ -295,7 +295,7 @@ class Manipulability(Term):
     """MAN^r: the robot's scaled manipulability toward the normalised human's (Mandel log residual)."""
 
     name = "MAN_r"
-    sites = (3,)
+    sites = (4,)
 
     def __init__(self, robot: Robot, learned: Learned):
         self.robot, self.scale = robot, learned.scale

@@ -1,6 +1,8 @@
 """MAN^r: tracking the velocity manipulability of the normalised MMM model (paper Sec. III-C).
 
-The robot's 3x3 position manipulability ``M_R = J J^T`` of each TCP, scaled by ``1 / lambda_R``, is
+The robot's 3x3 position manipulability ``M_R = J J^T`` of each arm's manipulability frame (the
+robot's ``[manipulability]`` site, where the hand is mounted) over its manipulability chain (the arm,
+plus ARMAR-III's hip), scaled by ``1 / lambda_R``, is
 compared with the human's ``M_H`` by the affine-invariant distance (Jaquier et al., IJRR 2021, Eq. 4)
 
     d(A, B) = ||log(A^{-1/2} B A^{-1/2})||_F.
@@ -18,7 +20,9 @@ import numpy as np
 from hlik.criteria.state import RobotState
 from hlik.human import human_model, qpos_trajectory
 from hlik.motion import ARM_JOINTS, HumanMotion
-from hlik.robot import SIDES, Robot
+from hlik.robot import SIDES, SITES, Robot
+
+SITE = SITES.index("manipulability")
 
 _SQRT2 = np.sqrt(2.0)
 _ROWS, _COLS = np.array([0, 1, 2, 0, 1, 0]), np.array([0, 1, 2, 1, 2, 2])
@@ -81,26 +85,26 @@ def _log_divided_difference(mu: np.ndarray) -> np.ndarray:
 
 
 def _arm_jacobian(robot: Robot, state: RobotState) -> np.ndarray:
-    """(F, 2, 6, k) TCP Jacobians restricted to each arm's k joints (proximal -> distal)."""
+    """(F, 2, 6, k) manipulability-frame Jacobians over each arm's k chain joints (proximal -> distal)."""
     if state.jac is None:
         raise ValueError("robot_state(..., jacobians=True) is required")
-    cols = np.array([robot.index(robot.arm_joints[s]) for s in SIDES])  # (2, k)
-    jac = state.jac[:, :, 3]  # (F, 2, 6, n)
+    cols = robot.manipulability_chain  # (2, k)
+    jac = state.jac[:, :, SITE]  # (F, 2, 6, n)
     return np.stack([jac[:, i][..., cols[i]] for i in range(len(SIDES))], axis=1)
 
 
 def arm_manipulability(robot: Robot, state: RobotState) -> np.ndarray:
-    """(F, 2, 3, 3) velocity manipulability of each TCP over its own arm's joints, m²."""
+    """(F, 2, 3, 3) velocity manipulability of each arm's frame over its chain, m²."""
     return velocity_manipulability(_arm_jacobian(robot, state)[..., :3, :])
 
 
 def manipulability_derivative(robot: Robot, state: RobotState) -> np.ndarray:
     """(F, 2, n, 3, 3) ``dM/dq_k`` of :func:`arm_manipulability` for every robot joint k.
 
-    Arm joints use the Bruyninckx–De Schutter derivative of the TCP Jacobian's linear part: for
-    arm columns i, j, ``dv_i/dq_j = w_j x v_i`` if j < i, else ``w_i x v_j``. A joint outside the arm
-    that moves the TCP (ARMAR-III's hip) is proximal to the whole arm, so ``dv_i/dq_k = w_k x v_i``;
-    it is zero for joints that do not move the TCP (the other arm).
+    Chain joints use the Bruyninckx–De Schutter derivative of the frame Jacobian's linear part: for
+    chain columns i, j, ``dv_i/dq_j = w_j x v_i`` if j < i, else ``w_i x v_j``. A joint outside the
+    chain that moves the frame is proximal to the whole chain, so ``dv_i/dq_k = w_k x v_i``; it is
+    zero for joints that do not move the frame (the other arm).
     """
     arm = _arm_jacobian(robot, state)  # (F, 2, 6, k)
     v = np.swapaxes(arm[..., :3, :], -1, -2)  # (F, 2, k, 3) linear columns
@@ -111,10 +115,10 @@ def manipulability_derivative(robot: Robot, state: RobotState) -> np.ndarray:
     after = np.cross(w[..., None, :, :], v[..., :, None, :])  # w_i x v_j
     proximal = np.arange(k)[:, None] < np.arange(k)[None, :]  # j < i
     d_arm = np.where(proximal[..., None], before, after)  # (F, 2, k, k, 3)
-    w_all = np.swapaxes(state.jac[:, :, 3, 3:, :], -1, -2)  # (F, 2, n, 3)
-    d_jac = np.cross(w_all[..., :, None, :], v[..., None, :, :])  # (F, 2, n, k, 3) non-arm rule
-    for i, side in enumerate(SIDES):
-        d_jac[:, i, robot.index(robot.arm_joints[side])] = d_arm[:, i]
+    w_all = np.swapaxes(state.jac[:, :, SITE, 3:, :], -1, -2)  # (F, 2, n, 3)
+    d_jac = np.cross(w_all[..., :, None, :], v[..., None, :, :])  # (F, 2, n, k, 3) non-chain rule
+    for i, cols in enumerate(robot.manipulability_chain):
+        d_jac[:, i, cols] = d_arm[:, i]
     d_jac = np.swapaxes(d_jac, -1, -2)  # (F, 2, n, 3, k)
     jac = np.swapaxes(v, -1, -2)[:, :, None]  # (F, 2, 1, 3, k)
     half = d_jac @ np.swapaxes(jac, -1, -2)
@@ -201,8 +205,8 @@ def _robot_max_det(robot: Robot, rng: np.random.Generator, n: int) -> float:
     upper = np.where(np.isinf(robot.upper), np.pi, robot.upper)
     q = rng.uniform(lower, upper, size=(n, robot.dof))
     model, data = robot.model, mujoco.MjData(robot.model)
-    sites = [robot.site_id(s, "tcp") for s in SIDES]
-    cols = [robot.index(robot.arm_joints[s]) for s in SIDES]
+    sites = [robot.site_id(s, "manipulability") for s in SIDES]
+    cols = robot.manipulability_chain
     jac_pos = np.empty((3, model.nv))
     best = 0.0
     for side_site, side_cols in zip(sites, cols):
@@ -232,7 +236,8 @@ def _human_max_det(rng: np.random.Generator, n: int) -> float:
 def scale_factor(robot: Robot, n: int = 20000, seed: int = 0) -> float:
     """Manipulability scale ``lambda_R = (max det M_R / max det M_H)^(1/3)`` (paper Sec. III-C).
 
-    Both maxima run over n random configurations: robot joints uniform within their limits
+    ``M_R`` is taken at the robot's manipulability frame over its chain, ``M_H`` at the MMM TCP over
+    its 7 arm joints. Both maxima run over n random configurations: robot joints uniform within their limits
     ([-pi, pi] if unlimited), MMM arm joints uniform within the model's ranges (other joints 0).
     """
     rng = np.random.default_rng(seed)

@@ -19,9 +19,9 @@ class RobotState:
 
     Attributes:
         q: (F, n) joint angles, rad.
-        sites: (F, 2, 4, 3) shoulder, elbow, wrist and TCP positions, metres.
+        sites: (F, 2, 5, 3) shoulder, elbow, wrist, TCP and manipulability-frame positions, metres.
         tcp_rot: (F, 2, 3, 3) TCP orientations.
-        jac: (F, 2, 4, 6, n) site Jacobians, linear rows first (d position / dq, angular velocity
+        jac: (F, 2, 5, 6, n) site Jacobians, linear rows first (d position / dq, angular velocity
             / dq), or None if not computed.
     """
 
@@ -52,7 +52,7 @@ def robot_state(
     q: np.ndarray,
     jacobians: bool = False,
     data: mujoco.MjData | None = None,
-    jacobian_sites: tuple[int, ...] = (0, 1, 2, 3),
+    jacobian_sites: tuple[int, ...] = tuple(range(len(SITES))),
 ) -> RobotState:
     """Forward kinematics (and site Jacobians) of ``robot`` at configurations ``q`` (F, n) or (n,).
 

@@ -47,7 +47,7 @@ from hlik.terms import (
 POSITION_TERMS = ("position", "relative_position")
 
 # Terms whose value (not only its Jacobian) reads site Jacobians: MAN^r is built from the TCP's.
-VALUE_SITES: Mapping[str, tuple[int, ...]] = MappingProxyType({"MAN_r": (3,)})
+VALUE_SITES: Mapping[str, tuple[int, ...]] = MappingProxyType({"MAN_r": (4,)})
 
 # Criteria whose Jacobian holds a configuration-dependent prediction fixed (Psi_human from the hand
 # pose, Soechting's elbow and joint angles from the wrist): a Gauss-Newton step for the QP, but not
