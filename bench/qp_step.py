@@ -15,13 +15,14 @@ import mujoco
 import numpy as np
 
 import hlik
-from hlik.criteria.reference import human_reference
-from hlik.learned import learn
+from hlik.criteria.learned import learn
+from hlik.human.kinematics import forward_kinematics
 from hlik.paths import demo_motion_path
-from hlik.placement import shoulder_placement
+from hlik.problem.placement import shoulder_placement
+from hlik.problem.reference import human_reference
+from hlik.problem.targets import hand_targets
 from hlik.solvers.frames import frame_at
 from hlik.solvers.qp import Assembly, QPSettings, build_terms, step
-from hlik.targets import hand_targets
 
 REPEATS = 5
 
@@ -29,7 +30,7 @@ REPEATS = 5
 def main() -> None:
     robot = hlik.load_robot("armar6")
     motion = hlik.load_motion(demo_motion_path(), rate=100.0).crop(2.0, 4.0)
-    human = motion.kinematics()
+    human = forward_kinematics(motion)
     placement = shoulder_placement(robot, human)
     targets = hand_targets(human, placement)
     settings = QPSettings(criteria=("SYN", "HJA_r"))

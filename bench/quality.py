@@ -22,11 +22,11 @@ import numpy as np
 
 import hlik
 from hlik.criteria.functional import position_error, relative_errors
-from hlik.criteria.state import robot_state
-from hlik.learned import learn
+from hlik.criteria.learned import learn
 from hlik.metrics import evaluate
+from hlik.robot.state import robot_state
 from hlik.solvers import get_solver
-from hlik.stack import load_stack
+from hlik.solvers.stack_file import load_stack
 
 DATA = Path(os.environ.get("HLIK_DATA", Path(__file__).resolve().parents[2] / "shared" / "motion_data"))
 DEFAULT = "jm,jv,qp,qp+SYN,qp+HJA_r,slsqp,slsqp+SYN,slsqp+HJA_r"

@@ -16,12 +16,13 @@ import time
 import numpy as np
 
 import hlik
-from hlik.criteria.state import robot_state
-from hlik.learned import learn
+from hlik.criteria.learned import learn
+from hlik.human.kinematics import forward_kinematics
 from hlik.paths import demo_motion_path
-from hlik.placement import shoulder_placement
+from hlik.problem.placement import shoulder_placement
+from hlik.problem.targets import hand_targets
+from hlik.robot.state import robot_state
 from hlik.solvers.slsqp import SLSQPSettings, solve
-from hlik.targets import hand_targets
 
 CRITERIA = ("SYN", "HJA_r")
 
@@ -39,8 +40,8 @@ def run(robot, motion, placement, targets, learned, gradients: str) -> tuple[np.
 def main() -> None:
     robot = hlik.load_robot("armar6")
     motion = hlik.load_motion(demo_motion_path(), rate=100.0).crop(2.0, 3.5)
-    placement = shoulder_placement(robot, motion.kinematics())
-    targets = hand_targets(motion.kinematics(), placement)
+    placement = shoulder_placement(robot, forward_kinematics(motion))
+    targets = hand_targets(forward_kinematics(motion), placement)
     learned = learn(robot)
 
     med = {}

@@ -51,9 +51,8 @@ def reachable_targets():
     Human-like and reachable by construction, unlike the recorded hand poses, which a robot's joint
     limits (ARMAR-III's forearm, for one) may put out of reach.
     """
-    from hlik.robot import tcp_poses
-    from hlik.solvers.jm import joint_mapping
-    from hlik.targets import HandTargets
+    from hlik.problem.targets import HandTargets
+    from hlik.robot.model import joint_mapping, tcp_poses
 
     def make(robot, motion):
         return HandTargets(*tcp_poses(robot, joint_mapping(robot, motion)))

@@ -12,9 +12,16 @@ import mujoco
 import numpy as np
 import pytest
 
-from hlik.demo import demo_motion
-from hlik.robot import COLLISION_GROUP, SIDES, VISUAL_GROUP, available_robots, load_robot, self_contacts
-from hlik.solvers.jm import joint_mapping
+from hlik.human.demo import demo_motion
+from hlik.robot.model import (
+    COLLISION_GROUP,
+    SIDES,
+    VISUAL_GROUP,
+    available_robots,
+    joint_mapping,
+    load_robot,
+    self_contacts,
+)
 
 ROBOTS = available_robots()
 PRIMITIVES = {

@@ -18,15 +18,16 @@ from hlik.criteria.eea import (
     swivel_gradient,
     swivel_jacobian,
 )
-from hlik.criteria.state import robot_state
-from hlik.demo import demo_motion
+from hlik.human.demo import demo_motion
+from hlik.human.kinematics import forward_kinematics
+from hlik.robot.state import robot_state
 
 MIRROR = np.array([-1.0, 1.0, 1.0])
 
 
 @pytest.fixture(scope="module")
 def human():
-    return demo_motion().kinematics()  # native 25 Hz
+    return forward_kinematics(demo_motion())  # native 25 Hz
 
 
 def random_q(robot, rng, k):

@@ -9,9 +9,9 @@ from typer.testing import CliRunner
 
 from hlik import MotionFormatError, RobotError, load_motion
 from hlik.cli import app
-from hlik.demo import demo_motion
-from hlik.mmm_format import write_mmm
-from hlik.robot import load_robot
+from hlik.human.demo import demo_motion
+from hlik.human.mmm_format import write_mmm
+from hlik.robot.model import load_robot
 
 
 @pytest.fixture(scope="module")

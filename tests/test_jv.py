@@ -10,11 +10,14 @@ import pytest
 
 from hlik import load_motion, load_robot, retarget
 from hlik.criteria.functional import relative_errors
-from hlik.criteria.state import robot_state
-from hlik.demo import demo_motion
-from hlik.learned import learn
+from hlik.criteria.learned import learn
+from hlik.criteria.terms import Frame, target_terms
+from hlik.human.demo import demo_motion
+from hlik.human.kinematics import forward_kinematics
 from hlik.metrics import costs
-from hlik.placement import shoulder_placement
+from hlik.problem.placement import shoulder_placement
+from hlik.problem.targets import HandTargets, hand_targets
+from hlik.robot.state import robot_state
 from hlik.solvers.jv import (
     JVSettings,
     chan_dubey,
@@ -24,8 +27,6 @@ from hlik.solvers.jv import (
     primary,
     solve,
 )
-from hlik.targets import HandTargets, hand_targets
-from hlik.terms import Frame, target_terms
 
 ROBOTS = ("armar3", "armar6", "dual_panda")
 
@@ -37,7 +38,7 @@ def _within_limits(robot, q):
 def _self_targets(robot, motion):
     """Targets the robot can reach: the TCP poses of its own joint-mapped motion (JM)."""
     jm = retarget(motion, robot)
-    return shoulder_placement(robot, motion.kinematics()), HandTargets(jm.tcp_pos, jm.tcp_rot)
+    return shoulder_placement(robot, forward_kinematics(motion)), HandTargets(jm.tcp_pos, jm.tcp_rot)
 
 
 @pytest.mark.parametrize("name", ROBOTS)
@@ -103,7 +104,7 @@ def test_tracks_reachable_kit_targets_on_armar3(takes, reachable_targets):
     100 Hz (reachable by construction); JV starts from its own initial pose, not from the mapping."""
     r = load_robot("armar3")
     motion = load_motion(takes[0], rate=100).crop(2.0, 2.5)
-    human = motion.kinematics()
+    human = forward_kinematics(motion)
     placement = shoulder_placement(r, human)
     targets = reachable_targets(r, motion)
     settings = JVSettings()
@@ -117,7 +118,7 @@ def test_tracks_reachable_kit_targets_on_armar3(takes, reachable_targets):
 def test_unreachable_targets_give_finite_motion_and_report_the_error():
     r = load_robot("armar3")
     motion = demo_motion().crop(0, 0.5)
-    human = motion.kinematics()
+    human = forward_kinematics(motion)
     placement = shoulder_placement(r, human)
     far = hand_targets(human, placement)
     far = replace(far, pos=far.pos + np.array([0.0, 3.0, 0.0]))  # 3 m in front of the robot

@@ -17,8 +17,8 @@ from hlik.criteria.manipulability import (
     scale_factor,
     spd_distance,
 )
-from hlik.criteria.state import robot_state
-from hlik.demo import demo_motion
+from hlik.human.demo import demo_motion
+from hlik.robot.state import robot_state
 
 ROBOTS = ("armar3", "armar6", "dual_panda")
 STEP = 1e-6

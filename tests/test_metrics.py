@@ -12,11 +12,11 @@ from hlik import load_motion, load_robot, retarget
 from hlik.cli import app
 from hlik.criteria import unified
 from hlik.criteria.joints import human_limits, mapped_pose, robot_limits
-from hlik.demo import demo_motion
+from hlik.criteria.learned import cache_dir, learn
 from hlik.errors import HlikError
-from hlik.learned import cache_dir, learn
+from hlik.human.demo import demo_motion
 from hlik.metrics import evaluate
-from hlik.solvers.jm import mapped_configuration
+from hlik.robot.model import mapped_configuration
 
 ROBOTS = ("armar3", "armar6", "dual_panda")
 
@@ -115,7 +115,7 @@ def test_learned_is_cached_by_robot_and_corpus(tmp_path):
     corpus = tmp_path / "corpus"
     corpus.mkdir()
     demo = demo_motion().crop(0, 6)
-    from hlik.mmm_format import write_mmm
+    from hlik.human.mmm_format import write_mmm
 
     write_mmm(demo, corpus / "short.xml")
     other = learn(r, corpus)

@@ -7,9 +7,10 @@ import pytest
 
 from conftest import data_file, kit_takes
 from hlik import load_motion
-from hlik.demo import demo_motion
-from hlik.mmm_format import write_mmm
-from hlik.motion import ARM_JOINTS
+from hlik.human.demo import demo_motion
+from hlik.human.kinematics import forward_kinematics
+from hlik.human.mmm_format import write_mmm
+from hlik.human.motion import ARM_JOINTS
 from hlik.paths import demo_motion_path
 
 MIRROR = np.diag([-1.0, 1.0, 1.0])
@@ -42,7 +43,7 @@ def test_kinematics_match_markers(path):
     Transfer take's wrist median is 4.505 cm, the skin-marker forearm being 2 cm shorter.
     """
     m = load_motion(path, rate=100.0)
-    k = m.kinematics()
+    k = forward_kinematics(m)
     mk = m.markers
     elbow = np.stack([_midpoint(mk, "LAEL", "LAOL"), _midpoint(mk, "RAEL", "RAOL")], 1)
     wrist = np.stack([_midpoint(mk, "LWPS", "LWTS"), _midpoint(mk, "RWPS", "RWTS")], 1)
@@ -57,7 +58,7 @@ def test_kinematics_match_markers(path):
 
 def test_tcp_frame_and_segment_lengths(takes):
     m = load_motion(takes[0])
-    k = m.kinematics()
+    k = forward_kinematics(m)
     r = k.tcp_rot
     assert np.allclose(r @ r.transpose(0, 1, 3, 2), np.eye(3), atol=1e-9)
     assert np.allclose(np.linalg.det(r), 1.0)
@@ -73,7 +74,7 @@ def test_legacy_walk_reads():
     assert m.n_frames == 378 and m.rate == pytest.approx(100.0) and m.height == pytest.approx(1.82)
     walked = np.linalg.norm(m.root_position[-1, :2] - m.root_position[0, :2])
     assert 1.0 < walked < 1.8
-    k = m.kinematics()
+    k = forward_kinematics(m)
     assert np.all(np.isfinite(k.tcp_pos))
     # arms swing at the sides: wrists stay below the shoulders
     assert np.all(k.wrist[..., 2] < k.shoulder[..., 2])
@@ -96,7 +97,7 @@ def test_mirror_is_reflection(takes):
     m = load_motion(takes[2])
     mm = m.mirrored()
     assert np.allclose(mm.mirrored().joints, m.joints)
-    k, km = m.kinematics(), mm.kinematics()
+    k, km = forward_kinematics(m), forward_kinematics(mm)
     for a, b in ((k.wrist, km.wrist), (k.elbow, km.elbow), (k.tcp_pos, km.tcp_pos)):
         assert np.allclose(b[:, 0], a[:, 1] @ MIRROR, atol=1e-9)
         assert np.allclose(b[:, 1], a[:, 0] @ MIRROR, atol=1e-9)
@@ -127,7 +128,7 @@ def test_bundled_demo_is_the_generated_one():
     ref = demo_motion()
     assert m.joint_names == ref.joint_names
     assert np.allclose(m.joints, ref.joints, atol=1e-7) and np.allclose(m.times, ref.times)
-    k = m.resample(100.0).kinematics()
+    k = forward_kinematics(m.resample(100.0))
     # both hands work in front of the body at some point, and the motion is smooth
     assert np.max(k.tcp_pos[:, :, 1]) > 0.25
     jerk = np.diff(m.resample(100.0).joints, 3, axis=0)

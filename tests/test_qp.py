@@ -11,15 +11,8 @@ from typer.testing import CliRunner
 
 from hlik import load_motion, load_robot, retarget
 from hlik.cli import app
-from hlik.criteria.state import robot_state
-from hlik.demo import demo_motion
-from hlik.learned import learn
-from hlik.placement import shoulder_placement
-from hlik.robot import SIDES
-from hlik.solvers.qp import QPSettings, qp_solver, solve
-from hlik.targets import HandTargets, hand_targets
-from hlik.tasks import CriterionTask, HumanJointLimit
-from hlik.terms import (
+from hlik.criteria.learned import learn
+from hlik.criteria.terms import (
     Frame,
     Orientation,
     Position,
@@ -27,6 +20,14 @@ from hlik.terms import (
     RelativePosition,
     rotation_vector,
 )
+from hlik.human.demo import demo_motion
+from hlik.human.kinematics import forward_kinematics
+from hlik.problem.placement import shoulder_placement
+from hlik.problem.targets import HandTargets, hand_targets
+from hlik.robot.model import SIDES
+from hlik.robot.state import robot_state
+from hlik.solvers.mink_tasks import CriterionTask, HumanJointLimit
+from hlik.solvers.qp import QPSettings, qp_solver, solve
 
 ROBOTS = ("armar3", "armar6", "dual_panda")
 
@@ -100,7 +101,7 @@ def test_reachable_targets_converge_within_the_iteration_limit(robot):
     r = load_robot(robot)
     motion = demo_motion().crop(0, 1.0).resample(50.0)
     jm = retarget(motion, r)  # a feasible, smooth robot motion
-    placement = shoulder_placement(r, motion.kinematics())
+    placement = shoulder_placement(r, forward_kinematics(motion))
     targets = HandTargets(jm.tcp_pos, jm.tcp_rot)
     settings = QPSettings(max_iter=30)
     q, steps = solve(r, motion, targets, placement, settings)
@@ -112,7 +113,7 @@ def test_reachable_targets_converge_within_the_iteration_limit(robot):
 def test_unreachable_targets_give_finite_motion_and_report_the_error():
     r = load_robot("dual_panda")
     motion = demo_motion().crop(0, 0.5)
-    human = motion.kinematics()
+    human = forward_kinematics(motion)
     placement = shoulder_placement(r, human)
     far = hand_targets(human, placement)
     far = replace(far, pos=far.pos + np.array([0.0, 5.0, 0.0]))  # 5 m in front of the robot

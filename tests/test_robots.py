@@ -8,11 +8,11 @@ import pytest
 from typer.testing import CliRunner
 
 from hlik import load_motion
-from hlik.calibrate import calibrate
 from hlik.cli import app
-from hlik.human import human_model
-from hlik.motion import ARM_JOINTS
-from hlik.robot import SITES, available_robots, load_robot
+from hlik.human.kinematics import human_model
+from hlik.human.motion import ARM_JOINTS
+from hlik.robot.calibrate import calibrate
+from hlik.robot.model import SITES, available_robots, load_robot
 
 ROBOTS = ("armar3", "armar6", "dual_panda")
 PI = np.pi

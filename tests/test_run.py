@@ -13,7 +13,7 @@ from rerun.chunk import RrdReader
 from typer.testing import CliRunner
 
 from hlik.cli import app
-from hlik.robot import load_robot
+from hlik.robot.model import load_robot
 from hlik.trajectory import load_trajectory
 
 ROBOTS = ("armar3", "armar6", "dual_panda")

@@ -10,11 +10,13 @@ import pytest
 
 from hlik import load_motion, load_robot, retarget
 from hlik.criteria.functional import relative_errors
-from hlik.criteria.reference import human_reference
-from hlik.criteria.state import robot_state
-from hlik.learned import learn
+from hlik.criteria.learned import learn
+from hlik.human.kinematics import forward_kinematics
 from hlik.paths import demo_motion_path
-from hlik.placement import shoulder_placement
+from hlik.problem.placement import shoulder_placement
+from hlik.problem.reference import human_reference
+from hlik.problem.targets import hand_targets
+from hlik.robot.state import robot_state
 from hlik.solvers import frames, get_solver
 from hlik.solvers.frames import frame_at
 from hlik.solvers.slsqp import (
@@ -26,7 +28,6 @@ from hlik.solvers.slsqp import (
     slsqp_solver,
     solve,
 )
-from hlik.targets import hand_targets
 
 ROBOTS = ("armar3", "armar6", "dual_panda")
 
@@ -35,8 +36,8 @@ def _problem(robot: str, start: float = 2.0, stop: float = 2.5):
     """Robot, demo motion crop at 100 Hz, placement and hand targets."""
     r = load_robot(robot)
     motion = load_motion(demo_motion_path(), rate=100.0).crop(start, stop)
-    placement = shoulder_placement(r, motion.kinematics())
-    return r, motion, placement, hand_targets(motion.kinematics(), placement)
+    placement = shoulder_placement(r, forward_kinematics(motion))
+    return r, motion, placement, hand_targets(forward_kinematics(motion), placement)
 
 
 def _fpos(r, q, target_pos) -> np.ndarray:
@@ -178,7 +179,7 @@ def test_tracks_a_kit_take_on_armar3_with_analytic_and_fd_gradients(takes, reach
     """Reachable targets from the first take (the robot's TCP along its clipped joint mapping)."""
     r = load_robot("armar3")
     motion = load_motion(takes[0], rate=100.0).crop(2.0, 2.5)
-    placement = shoulder_placement(r, motion.kinematics())
+    placement = shoulder_placement(r, forward_kinematics(motion))
     targets = reachable_targets(r, motion)
     medians = {}
     for gradients in ("analytic", "fd"):

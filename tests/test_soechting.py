@@ -18,8 +18,8 @@ from hlik.criteria.soechting import (
     soa_x_jacobian,
     soa_x_residual,
 )
-from hlik.criteria.state import arm_lengths, robot_state
-from hlik.human import human_model
+from hlik.human.kinematics import human_model
+from hlik.robot.state import arm_lengths, robot_state
 
 MIRROR = np.array([-1.0, 1.0, 1.0])
 ROBOTS = ["armar3", "armar6", "dual_panda"]

@@ -10,7 +10,7 @@ from hlik.criteria.unified import GAMMA
 from hlik.errors import HlikError
 from hlik.paths import tasks_dir
 from hlik.solvers.qp import QPSettings
-from hlik.stack import bundled_stacks, load_stack
+from hlik.solvers.stack_file import bundled_stacks, load_stack
 
 
 def test_bundled_stacks_load_for_every_solver():

@@ -10,11 +10,12 @@ from scipy.spatial.transform import Rotation
 
 from hlik import load_motion, load_robot
 from hlik.criteria.functional import position_error, rotation_angle
-from hlik.demo import demo_motion
 from hlik.errors import TrajectoryFormatError
 from hlik.fk import site_poses
+from hlik.human.demo import demo_motion
+from hlik.human.kinematics import forward_kinematics
 from hlik.retarget import retarget
-from hlik.robot import SIDES, tcp_poses
+from hlik.robot.model import SIDES, tcp_poses
 from hlik.trajectory import load_trajectory
 
 ROBOTS = ("armar3", "armar6", "dual_panda")
@@ -43,7 +44,7 @@ def test_round_trip_keeps_every_array(tmp_path, takes):
         np.testing.assert_array_equal(ref.objects[name].rotation, obj.rotation)
         assert set(ref.objects[name].markers) == set(obj.markers)
     # the stored reference reproduces the human; the stored TCP poses are the FK of the stored q
-    np.testing.assert_allclose(back.reference.kinematics().tcp_pos, motion.kinematics().tcp_pos)
+    np.testing.assert_allclose(forward_kinematics(back.reference).tcp_pos, forward_kinematics(motion).tcp_pos)
     np.testing.assert_allclose(tcp_poses(load_robot("armar3"), back.q)[0], back.tcp_pos)
 
 
@@ -114,7 +115,7 @@ def test_placement_matches_shoulder_midpoints_and_heading(robot, takes):
     r = load_robot(robot)
     motion = load_motion(takes[1])
     traj = retarget(motion, r)
-    human = motion.kinematics()
+    human = forward_kinematics(motion)
     ids = np.array([r.site_id(s, "shoulder") for s in SIDES])
     shoulders, _ = site_poses(r.model, r.home[None], ids)
     world = traj.placement.to_world(shoulders[0])

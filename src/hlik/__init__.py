@@ -5,11 +5,12 @@ metrics -> recording.
 """
 
 from hlik.errors import HlikError, MotionFormatError, RobotError, TrajectoryFormatError
-from hlik.human import HumanKinematics
-from hlik.motion import HumanMotion, ObjectMotion, load_motion
+from hlik.human.kinematics import HumanKinematics
+from hlik.human.load import load_motion
+from hlik.human.motion import HumanMotion, ObjectMotion
 from hlik.recording import write_recording
 from hlik.retarget import retarget
-from hlik.robot import Robot, available_robots, load_robot
+from hlik.robot.model import Robot, available_robots, load_robot
 from hlik.trajectory import Trajectory, load_trajectory
 
 __all__ = [

@@ -89,14 +89,14 @@ def run(
         TimeElapsedColumn,
     )
 
-    from hlik.learned import learn
+    from hlik.criteria.learned import learn
+    from hlik.human.load import load_motion
     from hlik.metrics import evaluate as evaluate_trajectory
-    from hlik.motion import load_motion
     from hlik.recording import LAYOUTS, write_recording
     from hlik.retarget import retarget
-    from hlik.robot import load_robot
+    from hlik.robot.model import load_robot
     from hlik.solvers import SOLVER_NAMES, get_solver
-    from hlik.stack import load_stack
+    from hlik.solvers.stack_file import load_stack
 
     path = motion or demo_motion_path()
     try:
@@ -211,10 +211,10 @@ def evaluate(
     """Human-likeness criteria h_i and scores m_i, m_hl, m_f and m_hl,f of a trajectory."""
     import json
 
+    from hlik.criteria.learned import learn
     from hlik.criteria.unified import midpoints
-    from hlik.learned import learn
     from hlik.metrics import evaluate as evaluate_trajectory
-    from hlik.robot import load_robot
+    from hlik.robot.model import load_robot
     from hlik.trajectory import load_trajectory
 
     try:
@@ -241,9 +241,9 @@ def learn(
     corpus: CorpusOpt = None,
 ) -> None:
     """Fit (or load from the cache) synergies, the swivel regressor and lambda_R; print what was learned."""
-    from hlik.learned import cache_dir
-    from hlik.learned import learn as learn_robot
-    from hlik.robot import available_robots, load_robot
+    from hlik.criteria.learned import cache_dir
+    from hlik.criteria.learned import learn as learn_robot
+    from hlik.robot.model import available_robots, load_robot
 
     paper = {"armar3": 7.25, "armar6": 8.76, "dual_panda": 4.7}
     table = Table("robot", "corpus", "PCA var. (5)", "1st-order var. (5)", "Psi rms", "lambda_R", "paper")
@@ -276,7 +276,7 @@ def _check_scenario(scenario: str) -> None:
 @app.command()
 def robots() -> None:
     """List the bundled robots with their degrees of freedom."""
-    from hlik.robot import available_robots, load_robot
+    from hlik.robot.model import available_robots, load_robot
 
     table = Table("name", "robot", "DoF", "arms", "extra joints", "unlimited")
     for name in available_robots():
@@ -291,7 +291,7 @@ def robots() -> None:
 @app.command()
 def info(motion: MotionArg = None) -> None:
     """Summarise a motion file: subject, duration, rate, joints, markers, objects."""
-    from hlik.motion import load_motion
+    from hlik.human.load import load_motion
 
     path = motion or demo_motion_path()
     try:
@@ -318,9 +318,9 @@ def calibrate(
     toml: Annotated[bool, typer.Option("--toml", help="Print the [mapping] tables as TOML.")] = False,
 ) -> None:
     """Derive the MMM -> robot joint mapping (paper Sec. III-A) and print it."""
-    from hlik.calibrate import calibrate as run_calibration
-    from hlik.calibrate import mapping_toml
-    from hlik.robot import load_robot
+    from hlik.robot.calibrate import calibrate as run_calibration
+    from hlik.robot.calibrate import mapping_toml
+    from hlik.robot.model import load_robot
 
     try:
         r = load_robot(robot)

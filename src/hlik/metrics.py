@@ -13,14 +13,14 @@ from hlik.criteria import unified
 from hlik.criteria.eea import eea_cost, eea_r_target, eea_residual, forward_fill, swivel_angle
 from hlik.criteria.functional import position_error, relative_errors, rotation_angle
 from hlik.criteria.joints import human_limits, mapped_pose, mean_square, robot_limits
+from hlik.criteria.learned import Learned
 from hlik.criteria.manipulability import man_cost, man_residual
-from hlik.criteria.reference import human_reference
 from hlik.criteria.smoothness import mje_cost
 from hlik.criteria.soechting import predict_arm, soa_q_residual, soa_q_targets, soa_x_cost, soa_x_residual
-from hlik.criteria.state import arm_lengths, robot_state
 from hlik.criteria.synergy import velocities
-from hlik.learned import Learned
-from hlik.robot import Robot
+from hlik.problem.reference import human_reference
+from hlik.robot.model import Robot
+from hlik.robot.state import arm_lengths, robot_state
 from hlik.trajectory import Trajectory
 
 FUNCTIONAL = ("fJLA", "fPOS", "fORI", "fPOS_off", "fORI_off")

@@ -31,10 +31,10 @@ from scipy.spatial.transform import Rotation
 from hlik.atomic import atomic_path
 from hlik.criteria.functional import position_error, rotation_angle
 from hlik.fk import body_poses
-from hlik.human import human_model, qpos_trajectory
-from hlik.motion import ObjectMotion
-from hlik.placement import Placement
-from hlik.robot import COLLISION_GROUP, SIDES, Robot
+from hlik.human.kinematics import human_model, qpos_trajectory
+from hlik.human.motion import ObjectMotion
+from hlik.problem.placement import Placement
+from hlik.robot.model import COLLISION_GROUP, SIDES, Robot
 from hlik.trajectory import Trajectory
 
 LAYOUTS = ("side", "overlay")

@@ -7,11 +7,12 @@ from dataclasses import replace
 import numpy as np
 
 from hlik.errors import HlikError
-from hlik.motion import HumanMotion
-from hlik.placement import Placement, shoulder_placement
-from hlik.robot import Robot, tcp_poses
+from hlik.human.kinematics import forward_kinematics
+from hlik.human.motion import HumanMotion
+from hlik.problem.placement import Placement, shoulder_placement
+from hlik.problem.targets import hand_targets
+from hlik.robot.model import Robot, tcp_poses
 from hlik.solvers import SOLVER_NAMES, Solver, get_solver
-from hlik.targets import hand_targets
 from hlik.trajectory import Trajectory
 
 
@@ -28,7 +29,7 @@ def retarget(
         name, solve = solver, get_solver(solver)
     else:
         name, solve = getattr(solver, "__name__", "custom"), solver
-    human = motion.kinematics()
+    human = forward_kinematics(motion)
     placement = placement or shoulder_placement(robot, human)
     targets = hand_targets(human, placement)
     q = np.asarray(solve(robot, motion, targets, placement), dtype=float)

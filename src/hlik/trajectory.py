@@ -15,9 +15,9 @@ import numpy as np
 
 from hlik.atomic import atomic_path
 from hlik.errors import TrajectoryFormatError
-from hlik.motion import HumanMotion, ObjectMotion
-from hlik.placement import Placement
-from hlik.targets import HandTargets
+from hlik.human.motion import HumanMotion, ObjectMotion
+from hlik.problem.placement import Placement
+from hlik.problem.targets import HandTargets
 
 FORMAT = "hlik.trajectory/1"
 

@@ -32,7 +32,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from hlik.criteria.angles import wrap
-from hlik.criteria.state import RobotState
+from hlik.robot.state import RobotState
 
 TWO_PI = 2.0 * np.pi
 _SINGULAR = 1e-6  # relative size below which the swivel angle is undefined

@@ -11,8 +11,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from hlik.criteria.angles import joint_difference
-from hlik.human import human_model
-from hlik.robot import Robot
+from hlik.human.kinematics import human_model
+from hlik.robot.model import Robot
 
 
 @dataclass(frozen=True, eq=False)

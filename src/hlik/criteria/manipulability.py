@@ -17,10 +17,10 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from hlik.criteria.state import RobotState
-from hlik.human import human_model, qpos_trajectory
-from hlik.motion import ARM_JOINTS, HumanMotion
-from hlik.robot import SIDES, SITES, Robot
+from hlik.human.kinematics import human_model, qpos_trajectory
+from hlik.human.motion import ARM_JOINTS, HumanMotion
+from hlik.robot.model import SIDES, SITES, Robot
+from hlik.robot.state import RobotState
 
 SITE = SITES.index("manipulability")
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from hlik.robot import SIDES, Robot
+from hlik.robot.model import SIDES, Robot
 
 # backward-difference stencils over (q_t, q_t-1, q_t-2, q_t-3)
 VELOCITY = np.array([1.0, -1.0, 0.0, 0.0])

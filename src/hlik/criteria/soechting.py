@@ -21,8 +21,8 @@ from __future__ import annotations
 import numpy as np
 
 from hlik.criteria.angles import joint_difference
-from hlik.criteria.state import RobotState
-from hlik.robot import Robot
+from hlik.robot.model import Robot
+from hlik.robot.state import RobotState
 
 MMM_ARM_LENGTH = 0.6  # m, upper arm + forearm of the MMM model scaled to 1.8 m
 _MIRROR = np.array([[-1.0, 1.0, 1.0], [1.0, 1.0, 1.0]])  # per arm (left, right): x -> -x on the left

@@ -17,11 +17,11 @@ from importlib import import_module
 
 import numpy as np
 
-from hlik.learned import Learned
-from hlik.motion import HumanMotion
-from hlik.placement import Placement
-from hlik.robot import Robot
-from hlik.targets import HandTargets
+from hlik.criteria.learned import Learned
+from hlik.human.motion import HumanMotion
+from hlik.problem.placement import Placement
+from hlik.problem.targets import HandTargets
+from hlik.robot.model import Robot
 
 Solver = Callable[[Robot, HumanMotion, HandTargets, Placement], np.ndarray]
 

@@ -10,12 +10,12 @@ from collections.abc import Callable
 
 import numpy as np
 
-from hlik.criteria.reference import HumanReference, human_reference
-from hlik.motion import HumanMotion
-from hlik.placement import Placement
-from hlik.robot import Robot
-from hlik.targets import HandTargets
-from hlik.terms import Frame
+from hlik.criteria.terms import Frame
+from hlik.human.motion import HumanMotion
+from hlik.problem.placement import Placement
+from hlik.problem.reference import HumanReference, human_reference
+from hlik.problem.targets import HandTargets
+from hlik.robot.model import Robot
 
 FrameSolver = Callable[[int, Frame, np.ndarray], np.ndarray]
 

@@ -13,13 +13,13 @@ from collections.abc import Sequence
 import mink
 import numpy as np
 
-from hlik.motion import HumanMotion
-from hlik.placement import Placement
-from hlik.robot import SIDES, Robot
+from hlik.criteria.terms import Frame
+from hlik.human.motion import HumanMotion
+from hlik.problem.placement import Placement
+from hlik.problem.targets import HandTargets
+from hlik.robot.model import SIDES, Robot
 from hlik.solvers.frames import track
-from hlik.targets import HandTargets
-from hlik.tasks import CriterionTask
-from hlik.terms import Frame
+from hlik.solvers.mink_tasks import CriterionTask
 
 
 class MinkSolver:

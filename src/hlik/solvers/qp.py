@@ -18,21 +18,15 @@ import mujoco
 import numpy as np
 import qpsolvers
 
-from hlik.criteria.state import robot_state
+from hlik.criteria.learned import Learned, learn
+from hlik.criteria.terms import Frame, Term, criterion_term, smoothness_terms, target_terms
 from hlik.criteria.unified import GAMMA
-from hlik.learned import Learned, learn
-from hlik.motion import HumanMotion
-from hlik.placement import Placement
-from hlik.robot import Robot
+from hlik.human.motion import HumanMotion
+from hlik.problem.placement import Placement
+from hlik.problem.targets import HandTargets
+from hlik.robot.model import Robot
+from hlik.robot.state import robot_state
 from hlik.solvers.frames import as_solver, iterate, track
-from hlik.targets import HandTargets
-from hlik.terms import (
-    Frame,
-    Term,
-    criterion_term,
-    smoothness_terms,
-    target_terms,
-)
 
 
 @dataclass(frozen=True)

@@ -21,16 +21,9 @@ import mujoco
 import nlopt
 import numpy as np
 
+from hlik.criteria.learned import Learned, learn
 from hlik.criteria.smoothness import ACCELERATION, JERK, VELOCITY
-from hlik.criteria.state import robot_state
-from hlik.criteria.unified import GAMMA
-from hlik.learned import Learned, learn
-from hlik.motion import HumanMotion
-from hlik.placement import Placement
-from hlik.robot import Robot
-from hlik.solvers.frames import as_solver, track
-from hlik.targets import HandTargets
-from hlik.terms import (
+from hlik.criteria.terms import (
     Frame,
     Orientation,
     Position,
@@ -40,6 +33,13 @@ from hlik.terms import (
     Term,
     criterion_term,
 )
+from hlik.criteria.unified import GAMMA
+from hlik.human.motion import HumanMotion
+from hlik.problem.placement import Placement
+from hlik.problem.targets import HandTargets
+from hlik.robot.model import Robot
+from hlik.robot.state import robot_state
+from hlik.solvers.frames import as_solver, track
 
 # Sec. IV-A's gamma_p = 10 for the TCP position. The relative position (m, like fPOS) gets it too:
 # with 1 the groove's well (c = 0.1) is 10 cm wide and SLSQP leaves fPOS^off at 10-50 cm on the

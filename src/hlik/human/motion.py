@@ -9,14 +9,10 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy.interpolate import CubicSpline
 from scipy.spatial.transform import Rotation, Slerp
-
-if TYPE_CHECKING:
-    from hlik.human import HumanKinematics
 
 # The 14 MMM arm joints every motion must carry (kinematics.md §1.2), proximal -> distal, in the
 # order of the paper's Table I (s_x, s_y, s_z, e_x, e_z, w_x, w_z=w_y).
@@ -99,12 +95,6 @@ class HumanMotion:
         """(T, k) angles of the named joints, in the order given."""
         return np.stack([self.joint(n) for n in names], axis=1)
 
-    def kinematics(self) -> HumanKinematics:
-        """Joint centres and TCP poses of both arms (see :mod:`hlik.human`)."""
-        from hlik.human import forward_kinematics
-
-        return forward_kinematics(self)
-
     def crop(self, start: float, stop: float) -> HumanMotion:
         """The frames with ``start <= t - t0 <= stop`` (seconds from the first frame)."""
         t = self.times - self.times[0]
@@ -182,18 +172,6 @@ class HumanMotion:
                 for k, o in self.objects.items()
             },
         )
-
-
-def load_motion(path: str | Path, rate: float | None = None) -> HumanMotion:
-    """Read an MMM motion file (MMM 2.0 or legacy), optionally resampled to ``rate`` Hz.
-
-    Raises:
-        hlik.errors.MotionFormatError: the file is missing, malformed or inconsistent.
-    """
-    from hlik.mmm_format import read_mmm
-
-    motion = read_mmm(Path(path))
-    return motion if rate is None else motion.resample(rate)
 
 
 def _spline(t: np.ndarray, y: np.ndarray, t_new: np.ndarray) -> np.ndarray:

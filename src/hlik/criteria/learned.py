@@ -21,11 +21,11 @@ from hlik.criteria.eea import SwivelPredictor
 from hlik.criteria.manipulability import scale_factor
 from hlik.criteria.synergy import Synergies, fit_synergies
 from hlik.errors import HlikError
-from hlik.motion import HumanMotion, load_motion
+from hlik.human.kinematics import forward_kinematics, shoulder_frame
+from hlik.human.load import load_motion
+from hlik.human.motion import HumanMotion
 from hlik.paths import demo_motion_path, robots_dir
-from hlik.placement import shoulder_frame
-from hlik.robot import SIDES, Robot
-from hlik.solvers.jm import joint_mapping
+from hlik.robot.model import SIDES, Robot, joint_mapping
 
 RATE = 100.0
 TRIM = 1.0  # s dropped at each end of a recording
@@ -106,7 +106,7 @@ def _body_frame_kinematics(motions: Sequence[HumanMotion]) -> tuple[np.ndarray, 
     each frame expressed in its own heading frame (x along the shoulders, z up)."""
     parts = []
     for m in motions:
-        k = m.kinematics()
+        k = forward_kinematics(m)
         frames = [shoulder_frame(s[0], s[1]) for s in k.shoulder]
         rot = np.stack([f[0] for f in frames])  # (T, 3, 3) world <- body
         origin = np.stack([f[1] for f in frames])

@@ -15,10 +15,10 @@ from scipy.spatial.transform import Rotation
 
 from hlik.criteria import eea, manipulability, soechting
 from hlik.criteria.joints import JointBand, human_limits, mapped_pose
+from hlik.criteria.learned import Learned
 from hlik.criteria.smoothness import ACCELERATION, JERK, VELOCITY
-from hlik.criteria.state import RobotState, arm_lengths
-from hlik.learned import Learned
-from hlik.robot import Robot
+from hlik.robot.model import Robot
+from hlik.robot.state import RobotState, arm_lengths
 
 
 @dataclass(frozen=True, eq=False)

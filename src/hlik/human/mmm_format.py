@@ -17,7 +17,7 @@ from scipy.spatial.transform import Rotation
 
 from hlik.atomic import atomic_path
 from hlik.errors import MotionFormatError
-from hlik.motion import ARM_JOINTS, HumanMotion, ObjectMotion, _slerp
+from hlik.human.motion import ARM_JOINTS, HumanMotion, ObjectMotion, _slerp
 
 MM = 1e-3
 

@@ -12,8 +12,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from hlik.fk import site_poses
-from hlik.human import HumanKinematics
-from hlik.robot import SIDES, Robot
+from hlik.human.kinematics import HumanKinematics, shoulder_frame
+from hlik.robot.model import SIDES, Robot
 
 
 @dataclass(frozen=True, eq=False)
@@ -50,24 +50,6 @@ class Placement:
         """World positions (..., 3) (and rotations (..., 3, 3)) expressed in the robot base frame."""
         p = (pos - self.translation) @ self.rotation
         return p if rot is None else (p, self.rotation.T @ rot)
-
-
-def shoulder_frame(left: np.ndarray, right: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Upright frame at the shoulder midpoint: x towards the right shoulder, y forward, z up.
-
-    Args:
-        left, right: (3,) shoulder positions.
-
-    Returns:
-        (3, 3) rotation (columns x, y, z) and (3,) origin.
-    """
-    x = np.array([right[0] - left[0], right[1] - left[1], 0.0])
-    norm = np.linalg.norm(x)
-    if norm < 1e-9:
-        raise ValueError("shoulders coincide in the horizontal plane; heading undefined")
-    x /= norm
-    z = np.array([0.0, 0.0, 1.0])
-    return np.column_stack([x, np.cross(z, x), z]), (left + right) / 2.0
 
 
 def shoulder_placement(robot: Robot, human: HumanKinematics) -> Placement:

@@ -10,8 +10,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hlik.human import HumanKinematics
-from hlik.placement import Placement
+from hlik.human.kinematics import HumanKinematics
+from hlik.problem.placement import Placement
 
 
 @dataclass(frozen=True, eq=False)

@@ -13,7 +13,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from hlik.fk import site_poses
-from hlik.motion import HumanMotion
+from hlik.human.motion import HumanMotion
 from hlik.paths import robots_dir
 
 SIDES = ("left", "right")
@@ -73,3 +73,21 @@ def forward_kinematics(motion: HumanMotion) -> HumanKinematics:
     ids = np.array([[model.site(f"{s}_{n}").id for s in SIDES] for n in names])
     pos, rot = site_poses(model, qpos_trajectory(model, motion), ids)
     return HumanKinematics(pos[:, 0], pos[:, 1], pos[:, 2], pos[:, 3], rot[:, 3])
+
+
+def shoulder_frame(left: np.ndarray, right: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Upright frame at the shoulder midpoint: x towards the right shoulder, y forward, z up.
+
+    Args:
+        left, right: (3,) shoulder positions.
+
+    Returns:
+        (3, 3) rotation (columns x, y, z) and (3,) origin.
+    """
+    x = np.array([right[0] - left[0], right[1] - left[1], 0.0])
+    norm = np.linalg.norm(x)
+    if norm < 1e-9:
+        raise ValueError("shoulders coincide in the horizontal plane; heading undefined")
+    x /= norm
+    z = np.array([0.0, 0.0, 1.0])
+    return np.column_stack([x, np.cross(z, x), z]), (left + right) / 2.0

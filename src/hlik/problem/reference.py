@@ -13,10 +13,10 @@ import numpy as np
 
 from hlik.criteria.eea import forward_fill, swivel_angle
 from hlik.criteria.manipulability import human_manipulability
-from hlik.motion import HumanMotion
-from hlik.placement import Placement
-from hlik.robot import Robot
-from hlik.solvers.jm import mapped_configuration
+from hlik.human.kinematics import forward_kinematics
+from hlik.human.motion import HumanMotion
+from hlik.problem.placement import Placement
+from hlik.robot.model import Robot, mapped_configuration
 
 
 @dataclass(frozen=True, eq=False)
@@ -34,7 +34,7 @@ class HumanReference:
 
 def human_reference(robot: Robot, motion: HumanMotion, placement: Placement) -> HumanReference:
     """The reference of every frame of ``motion`` for ``robot`` placed at ``placement``."""
-    human = motion.kinematics()
+    human = forward_kinematics(motion)
     rot = placement.rotation
     return HumanReference(
         q_map=mapped_configuration(robot, motion),

@@ -13,10 +13,10 @@ import numpy as np
 from mink.limits import Constraint, Limit
 
 from hlik.criteria.joints import human_limits
-from hlik.criteria.state import robot_state
-from hlik.learned import Learned
-from hlik.robot import Robot
-from hlik.terms import Frame, Term, criterion_term
+from hlik.criteria.learned import Learned
+from hlik.criteria.terms import Frame, Term, criterion_term
+from hlik.robot.model import Robot
+from hlik.robot.state import robot_state
 
 
 class CriterionTask(mink.Task):

@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from hlik.mmm_format import write_mmm
-from hlik.motion import HumanMotion
+from hlik.human.mmm_format import write_mmm
+from hlik.human.motion import HumanMotion
 from hlik.paths import demo_motion_path
 
 HEIGHT = 1.75  # m

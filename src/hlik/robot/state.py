@@ -10,7 +10,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from hlik.robot import SITES, Robot
+from hlik.robot.model import SITES, Robot
 
 
 @dataclass(frozen=True, eq=False)

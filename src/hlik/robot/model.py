@@ -10,10 +10,11 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from hlik.errors import RobotError
+from hlik.errors import MotionFormatError, RobotError
 from hlik.fk import site_poses
-from hlik.mapping import JointMapping
+from hlik.human.motion import HumanMotion
 from hlik.paths import robots_dir
+from hlik.robot.mapping import JointMapping
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -234,3 +235,26 @@ def _velocity_limits(path: Path, desc: dict, names: tuple[str, ...]) -> tuple[np
         bad = [n for n, v in zip(names, limits) if not (np.isfinite(v) and v > 0)]
         raise RobotError(f"{path}: [velocity_limits] must be positive and finite: {', '.join(bad)}")
     return limits, source
+
+
+def mapped_configuration(robot: Robot, motion: HumanMotion) -> np.ndarray:
+    """(T, n) the MMM joint angles mapped through the robot's Table I mapping, not clipped.
+
+    Joints the mapping does not cover (ARMAR-III's hip) stay at home.
+    """
+    missing = [j for j in robot.mapping.mmm_joints if j not in motion.joint_names]
+    if missing:
+        raise MotionFormatError(motion.source, f"motion lacks MMM joint(s) {', '.join(missing)}")
+    q = np.tile(robot.home, (motion.n_frames, 1))
+    for name, angles in robot.mapping.apply(motion.joint_names, motion.joints).items():
+        q[:, robot.index(name)] = angles
+    return q
+
+
+def joint_mapping(robot: Robot, motion: HumanMotion, *_: object) -> np.ndarray:
+    """JM: :func:`mapped_configuration` clipped into the joint limits, as a robot controller would.
+
+    Returns:
+        (T, n) joint angles in ``robot.joint_names`` order.
+    """
+    return np.clip(mapped_configuration(robot, motion), robot.lower, robot.upper)

@@ -1,0 +1,18 @@
+"""Reading human motion files into a :class:`~hlik.human.motion.HumanMotion`."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from hlik.human.mmm_format import read_mmm
+from hlik.human.motion import HumanMotion
+
+
+def load_motion(path: str | Path, rate: float | None = None) -> HumanMotion:
+    """Read an MMM motion file (MMM 2.0 or legacy), optionally resampled to ``rate`` Hz.
+
+    Raises:
+        hlik.errors.MotionFormatError: the file is missing, malformed or inconsistent.
+    """
+    motion = read_mmm(Path(path))
+    return motion if rate is None else motion.resample(rate)

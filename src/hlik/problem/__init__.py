@@ -1,0 +1,19 @@
+"""Stage 3, the problem: everything a solver needs about one motion on one robot.
+
+- :mod:`~hlik.problem.placement`: where the robot stands in the human's world.
+- :mod:`~hlik.problem.targets`: the human hand poses as robot TCP targets.
+- :mod:`~hlik.problem.reference`: the human reference the reference criteria compare to.
+"""
+
+from hlik.problem.placement import Placement, shoulder_placement
+from hlik.problem.reference import HumanReference, human_reference
+from hlik.problem.targets import HandTargets, hand_targets
+
+__all__ = [
+    "HandTargets",
+    "HumanReference",
+    "Placement",
+    "hand_targets",
+    "human_reference",
+    "shoulder_placement",
+]
