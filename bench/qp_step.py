@@ -21,7 +21,7 @@ from hlik.paths import demo_motion_path
 from hlik.problem.placement import shoulder_placement
 from hlik.problem.reference import human_reference
 from hlik.problem.targets import hand_targets
-from hlik.solvers.frames import frame_at
+from hlik.solvers.frames import sample_at
 from hlik.solvers.qp import Assembly, QPSettings, build_terms, step
 
 REPEATS = 5
@@ -49,7 +49,7 @@ def main() -> None:
     limits = [mink.ConfigurationLimit(robot.model)]
 
     def hlik_step(k: int) -> None:
-        frame = frame_at(ref, targets, k, np.tile(q0[k], (3, 1)), 0.01)
+        frame = sample_at(ref, targets, k, np.tile(q0[k], (3, 1)), 0.01)
         step(robot, terms, q0[k], frame, settings, data)
 
     def mink_step(k: int) -> None:

@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from hlik import load_motion, load_robot, retarget
-from hlik.criteria.functional import relative_errors
+from hlik.criteria.base import Sample
+from hlik.criteria.functional import relative_errors, target_terms
 from hlik.criteria.learned import learn
-from hlik.criteria.terms import Frame, target_terms
 from hlik.human.demo import demo_motion
 from hlik.human.kinematics import forward_kinematics
 from hlik.metrics import costs
@@ -86,7 +86,7 @@ def test_null_space_step_leaves_the_primary_task_alone(name, scenario):
     rng = np.random.default_rng(2)
     q = np.clip(r.home + rng.normal(0, 0.3, r.dof), r.lower, r.upper)
     s = robot_state(r, q, jacobians=True)
-    frame = Frame(
+    frame = Sample.one(
         s.tcp[0] + 0.1, s.tcp_rot[0], q, np.zeros(2), np.tile(np.eye(3), (2, 1, 1)), np.tile(q, (3, 1)), 0.01
     )
     _, jac = primary(target_terms(scenario), s, frame, 0.2)

@@ -10,7 +10,7 @@ from typer.testing import CliRunner
 
 from hlik import load_motion, load_robot, retarget
 from hlik.cli import app
-from hlik.criteria import unified
+from hlik.criteria import registry, unified
 from hlik.criteria.joints import human_limits, mapped_pose, robot_limits
 from hlik.criteria.learned import cache_dir, learn
 from hlik.errors import HlikError
@@ -30,14 +30,26 @@ def _fd(fun, q, eps=1e-6):
     return np.stack(cols, axis=-1)
 
 
+TABLE_III = {  # name: (x0, inverse weight), paper Table III
+    "EEA": (0.3, 20), "SOA_x": (0.2, 20), "SOA_q": (0.34, 20), "HJL": (0.48, 15), "SYN": (0.12, 15),
+    "MIS": (0.49, 5), "MJE": (2e-4, 5), "HJA_r": (0.35, 30), "SYN_r": (0.47, 30), "EEA_r": (0.1, 20),
+    "MAN_r": (1.9, 5),
+}  # fmt: skip
+TABLE_II = {  # paper Table II (MJE is part of OPT, gamma 1)
+    "EEA": 4, "SOA_x": 10, "SOA_q": 2, "HJL": 1, "SYN": 6, "MIS": 1, "HJA_r": 2, "SYN_r": 2, "EEA_r": 6, "MAN_r": 0.5,
+}  # fmt: skip
+
+
 def test_logistic_and_weights():
-    for x0 in unified.X0.values():
+    assert registry.human_likeness() == tuple(TABLE_III)
+    for name, (x0, inverse) in TABLE_III.items():
+        cls = registry.criterion_class(name)
+        assert (cls.x0, cls.weight) == (x0, pytest.approx(1 / inverse)), name
+        assert cls.gamma == TABLE_II.get(name, 1.0), name
         assert unified.logistic(x0, x0) == pytest.approx(0.5)
         assert unified.logistic(0.0, x0) > 0.99 and unified.logistic(2 * x0, x0) < 0.01
         assert np.all(np.diff(unified.logistic(np.linspace(0, 3 * x0, 50), x0)) < 0)
-    assert sum(unified.WEIGHTS.values()) == pytest.approx(1.0)
-    assert set(unified.WEIGHTS) == set(unified.X0) == set(unified.CRITERIA)
-    m = dict.fromkeys(unified.CRITERIA, 0.7)
+    m = dict.fromkeys(registry.human_likeness(), 0.7)
     assert unified.hierarchical(m) == pytest.approx(0.7)
     assert unified.combined(1.0, 0.0) == 0.5
 
@@ -98,7 +110,7 @@ def test_jm_on_a_recorded_take_scores_in_unit_interval(robot, takes):
             assert 0.0 <= m <= 1.0, k
         assert 0.0 <= ev.m_hl <= 1.0 and 0.0 <= ev.m_f <= 1.0
         assert ev.m_hl_f == pytest.approx(0.5 * (ev.m_hl + ev.m_f))
-        assert set(ev.m) == set(unified.CRITERIA) | set(unified.FUNCTIONAL_X0[scenario])
+        assert set(ev.m) == set(registry.human_likeness()) | set(unified.FUNCTIONAL_X0[scenario])
     # JM follows the mapped human wherever the limits allow
     assert ev.m["HJA_r"] > 0.95 and ev.m["SYN_r"] > 0.95
 
@@ -133,7 +145,7 @@ def test_evaluate_cli(tmp_path, takes):
     assert all(k in result.stdout for k in ("EEA", "MAN_r", "m_hl", "fPOS"))
     result = CliRunner().invoke(app, ["evaluate", str(path), "--json", "--scenario", "relative"])
     data = json.loads(result.stdout)
-    assert set(data["metrics"]) == set(unified.CRITERIA)
+    assert set(data["metrics"]) == set(registry.human_likeness())
     assert set(data["functional"]) == {"fJLA", "fPOS_off", "fORI_off", "fPOS", "fORI"}
     assert all(set(v) == {"h", "m"} for v in data["metrics"].values())
     assert data["m_hl_f"] == pytest.approx(0.5 * (data["m_hl"] + data["m_f"]))

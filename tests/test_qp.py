@@ -11,15 +11,9 @@ from typer.testing import CliRunner
 
 from hlik import load_motion, load_robot, retarget
 from hlik.cli import app
+from hlik.criteria.base import Sample
+from hlik.criteria.functional import fORI, fORI_off, fPOS, fPOS_off, rotation_vector
 from hlik.criteria.learned import learn
-from hlik.criteria.terms import (
-    Frame,
-    Orientation,
-    Position,
-    RelativeOrientation,
-    RelativePosition,
-    rotation_vector,
-)
 from hlik.human.demo import demo_motion
 from hlik.human.kinematics import forward_kinematics
 from hlik.problem.placement import shoulder_placement
@@ -35,7 +29,7 @@ ROBOTS = ("armar3", "armar6", "dual_panda")
 def _frame(robot, q_target):
     s = robot_state(robot, q_target)
     eye = np.tile(np.eye(3), (2, 1, 1))
-    return Frame(s.tcp[0], s.tcp_rot[0], q_target, np.full(2, 2.5), eye, np.tile(q_target, (3, 1)), 0.01)
+    return Sample.one(s.tcp[0], s.tcp_rot[0], q_target, np.full(2, 2.5), eye, np.tile(q_target, (3, 1)), 0.01)
 
 
 @pytest.mark.parametrize("robot", ROBOTS)
@@ -50,7 +44,7 @@ def test_criteria_work_inside_plain_mink(robot):
     goal = np.clip(r.home + 0.2, r.lower, r.upper)
     tasks = [CriterionTask.criterion(name, r, learned) for name in ("HJA_r", "SYN_r")]
     for task in tasks:
-        task.set_frame(_frame(r, goal))
+        task.set_sample(_frame(r, goal))
     before = [np.linalg.norm(t.compute_error(config)) for t in tasks]
     limits = [mink.ConfigurationLimit(r.model), HumanJointLimit(r)]
     for _ in range(30):
@@ -61,7 +55,7 @@ def test_criteria_work_inside_plain_mink(robot):
     assert np.all(config.q >= r.lower - 1e-6) and np.all(config.q <= r.upper + 1e-6)
 
 
-TARGET_TERMS = (Position, Orientation, RelativePosition, RelativeOrientation)
+TARGET_TERMS = (fPOS, fORI, fPOS_off, fORI_off)
 
 
 def _fd(fun, q, eps=1e-6):

@@ -18,7 +18,7 @@ from hlik.problem.reference import human_reference
 from hlik.problem.targets import hand_targets
 from hlik.robot.state import robot_state
 from hlik.solvers import frames, get_solver
-from hlik.solvers.frames import frame_at
+from hlik.solvers.frames import sample_at
 from hlik.solvers.slsqp import (
     Objective,
     SLSQPSettings,
@@ -60,7 +60,7 @@ def test_groove_is_the_papers_loss_and_its_derivative_is_exact():
 def test_settings_hold_the_papers_weights():
     pose = SLSQPSettings()
     assert (pose.position, pose.orientation, pose.velocity, pose.acceleration, pose.jerk) == (10, 9, 7, 2, 1)
-    assert pose.criterion == 10 and pose.position_gamma == 10 and pose.gamma["SYN"] == 6
+    assert pose.criterion == 10 and pose.position_gamma == 10 and dict(pose.gamma) == {}
     rel = SLSQPSettings.relative(("SYN",), max_eval=50)
     assert (rel.relative_position, rel.relative_orientation, rel.position, rel.orientation) == (3, 15, 0, 0)
     assert (rel.velocity, rel.acceleration, rel.jerk, rel.criterion) == (40, 10, 5, 100)
@@ -77,8 +77,8 @@ def test_losses_weights_and_the_first_frame_of_the_relative_scenario():
     names = lambda losses: {loss.term.name: (loss.weight, loss.gamma) for loss in losses}  # noqa: E731
     pose = names(build_losses(r, SLSQPSettings(criteria=("SYN", "HJA_r")), learned))
     assert pose == {
-        "position": (10, 10),
-        "orientation": (9, 1),
+        "fPOS": (10, 10),
+        "fORI": (9, 1),
         "velocity": (7, 1),
         "acceleration": (2, 1),
         "jerk": (1, 1),
@@ -87,16 +87,16 @@ def test_losses_weights_and_the_first_frame_of_the_relative_scenario():
     }
     settings = SLSQPSettings.relative(("SYN",))
     assert set(names(build_losses(r, settings, learned))) == {
-        "relative_position",
-        "relative_orientation",
+        "fPOS_off",
+        "fORI_off",
         "velocity",
         "acceleration",
         "jerk",
         "SYN",
     }
     first = names(build_losses(r, settings, learned, first=True))
-    assert first["position"] == (10, 10) and first["velocity"] == (7, 1) and first["SYN"] == (10, 6)
-    assert "relative_position" not in first
+    assert first["fPOS"] == (10, 10) and first["velocity"] == (7, 1) and first["SYN"] == (10, 6)
+    assert "fPOS_off" not in first
 
 
 @pytest.mark.parametrize("scenario", ["pose", "relative"])
@@ -113,7 +113,7 @@ def test_analytic_gradient_is_the_objectives(robot, criteria, scenario):
     ref = human_reference(r, motion, placement)
     q = np.clip(ref.q_map[10] + rng.normal(0, 0.1, r.dof), r.lower, r.upper)
     history = np.clip(q + rng.normal(0, 0.05, (3, r.dof)), r.lower, r.upper)
-    objective.reset(frame_at(ref, targets, 10, history, 0.01))
+    objective.reset(sample_at(ref, targets, 10, history, 0.01))
     f, grad = objective.value_and_gradient(q)
     assert f == pytest.approx(objective.value(q), abs=1e-12)
     eps = 1e-6
@@ -142,10 +142,10 @@ def test_a_frame_with_nan_targets_fails_alone_and_keeps_the_last_configuration(m
     r, motion, placement, targets = _problem("dual_panda", 2.0, 2.2)
 
     def nan_at_3(ref, targets, k, history, dt):
-        frame = frame_at(ref, targets, k, history, dt)
+        frame = sample_at(ref, targets, k, history, dt)
         return replace(frame, target_pos=frame.target_pos * np.nan) if k == 3 else frame
 
-    monkeypatch.setattr(frames, "frame_at", nan_at_3)
+    monkeypatch.setattr(frames, "sample_at", nan_at_3)
     q, info = solve(r, motion, targets, placement)
     assert info.failed == (3,) and info.status[3] == nlopt.FAILURE
     assert np.all(np.isfinite(q))

@@ -9,18 +9,13 @@ from types import MappingProxyType
 
 import numpy as np
 
-from hlik.criteria import unified
-from hlik.criteria.eea import eea_cost, eea_r_target, eea_residual, forward_fill, swivel_angle
-from hlik.criteria.functional import position_error, relative_errors, rotation_angle
-from hlik.criteria.joints import human_limits, mapped_pose, mean_square, robot_limits
+from hlik.criteria import registry, unified
+from hlik.criteria.base import Sample
 from hlik.criteria.learned import Learned
-from hlik.criteria.manipulability import man_cost, man_residual
-from hlik.criteria.smoothness import mje_cost
-from hlik.criteria.soechting import predict_arm, soa_q_residual, soa_q_targets, soa_x_cost, soa_x_residual
-from hlik.criteria.synergy import velocities
-from hlik.problem.reference import human_reference
+from hlik.criteria.smoothness import history
+from hlik.problem.reference import HumanReference, human_reference
 from hlik.robot.model import Robot
-from hlik.robot.state import arm_lengths, robot_state
+from hlik.robot.state import robot_state
 from hlik.trajectory import Trajectory
 
 FUNCTIONAL = ("fJLA", "fPOS", "fORI", "fPOS_off", "fORI_off")
@@ -55,7 +50,7 @@ class Evaluation:
         """The JSON object of ``hlik evaluate --json``."""
         pair = lambda k: {"h": float(np.mean(self.h[k])), "m": self.m[k]}  # noqa: E731
         return {
-            "metrics": {k: pair(k) for k in unified.CRITERIA},
+            "metrics": {k: pair(k) for k in registry.human_likeness()},
             "functional": {k: pair(k) for k in unified.FUNCTIONAL_X0[self.scenario]},
             "m_hl": self.m_hl,
             "m_f": self.m_f,
@@ -64,40 +59,34 @@ class Evaluation:
         }
 
 
-def costs(traj: Trajectory, robot: Robot, learned: Learned) -> dict[str, np.ndarray]:
-    """Criterion name -> (T,) cost h(t) of every criterion, functional ones included."""
-    q, ref, syn = traj.q, traj.reference, learned.synergies
-    state = robot_state(robot, q, jacobians=True)
-    human = human_reference(robot, ref, traj.placement)
-    h = {}
-
-    psi = forward_fill(swivel_angle(state.shoulder, state.elbow, state.wrist))
-    psi_human = learned.swivel.predict(state.shoulder, state.tcp, state.tcp_rot)
-    h["EEA"] = eea_cost(eea_residual(psi, psi_human))
-    h["EEA_r"] = eea_cost(eea_residual(psi, eea_r_target(psi, psi_human, human.psi)))
-
-    l_u, l_f = arm_lengths(robot)
-    elbow_pred, angles = predict_arm(state.shoulder, state.wrist, l_u, l_f)
-    h["SOA_x"] = soa_x_cost(soa_x_residual(state, elbow_pred, l_u))
-    idx, targets = soa_q_targets(robot, angles)
-    h["SOA_q"] = mean_square(soa_q_residual(robot, state, idx, targets))
-
-    h["HJL"] = mean_square(human_limits(robot).residual(q))
-    h["HJA_r"] = mean_square(mapped_pose(robot, human.q_map).residual(q))
-    h["SYN"] = mean_square(syn.syn_residual(q))
-    h["SYN_r"] = mean_square(syn.syn_r_residual(q, human.q_map))
-    h["MIS"] = syn.mis_cost(velocities(q, float(np.median(np.diff(traj.times)))))
-    h["MJE"] = mje_cost(robot, q)
-
-    h["MAN_r"] = man_cost(man_residual(robot, state, human.manip, learned.scale))
-
-    h["fJLA"] = mean_square(robot_limits(robot).residual(q))
-    h["fPOS"] = position_error(traj.tcp_pos, traj.targets.pos).mean(axis=-1)
-    h["fORI"] = rotation_angle(traj.tcp_rot, traj.targets.rot).mean(axis=-1)
-    h["fPOS_off"], h["fORI_off"] = relative_errors(
-        traj.tcp_pos, traj.tcp_rot, traj.targets.pos, traj.targets.rot
+def trajectory_sample(traj: Trajectory, reference: HumanReference) -> Sample:
+    """The :class:`Sample` of every frame of ``traj``: its targets, the human reference, the previous
+    three configurations (the first frame repeated before the start) and the median frame period."""
+    dt = float(np.median(np.diff(traj.times))) if traj.n_frames > 1 else 0.01
+    return Sample(
+        traj.targets.pos,
+        traj.targets.rot,
+        reference.q_map,
+        reference.psi,
+        reference.manip,
+        history(traj.q),
+        dt,
     )
-    return h
+
+
+def costs(traj: Trajectory, robot: Robot, learned: Learned) -> dict[str, np.ndarray]:
+    """Criterion name -> (T,) cost h(t) of every registered criterion, functional ones included.
+
+    Each is the criterion's own :meth:`~hlik.criteria.base.Term.cost` of its residual, the cost the
+    solvers report, computed for all frames after one forward-kinematics pass.
+    """
+    sample = trajectory_sample(traj, human_reference(robot, traj.reference, traj.placement))
+    criteria = [
+        registry.criterion(n, robot, learned) for n in registry.human_likeness() + registry.functional()
+    ]
+    sites = tuple(sorted({i for c in criteria for i in c.value_sites}))
+    state = robot_state(robot, traj.q, jacobians=bool(sites), jacobian_sites=sites)
+    return {c.name: c.cost(c.residual(state, sample)) for c in criteria}
 
 
 def evaluate(

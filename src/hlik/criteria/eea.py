@@ -27,12 +27,17 @@ is the signed, wrapped version of it (formulas.md §9).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
 from hlik.criteria.angles import wrap
+from hlik.criteria.base import Criterion
 from hlik.robot.state import RobotState
+
+if TYPE_CHECKING:
+    from hlik.criteria.learned import Learned
 
 TWO_PI = 2.0 * np.pi
 _SINGULAR = 1e-6  # relative size below which the swivel angle is undefined
@@ -283,3 +288,46 @@ def eea_r_target(psi: np.ndarray, psi_human: np.ndarray, psi_mmm: np.ndarray) ->
     d_m = np.abs(wrap(np.asarray(psi) - psi_mmm))
     use_mmm = (d_m < d_h) | (np.isnan(d_h) & ~np.isnan(d_m))
     return np.where(use_mmm, psi_mmm, psi_human)
+
+
+class EEA(Criterion):
+    """EEA: each arm's elbow elevation Ψ to the human-like prediction Ψ_human (e (F, 2)).
+
+    Where Ψ is undefined (stretched arm, vertical shoulder -> wrist axis) the residual and its row
+    of the Jacobian are 0: there is no elevation to compare. The prediction is held fixed in the
+    Jacobian (formulas.md §9).
+    """
+
+    name, gamma, x0, weight = "EEA", 4.0, 0.3, 1 / 20
+    needs_sample = False
+
+    def __init__(self, robot: object, learned: Learned):
+        self.swivel = learned.swivel
+
+    def target(self, state: RobotState, sample: object, psi: np.ndarray) -> np.ndarray:
+        """(F, 2) the Ψ each arm is drawn to."""
+        return self.swivel.predict(state.shoulder, state.tcp, state.tcp_rot)
+
+    def residual(self, state, sample):
+        psi = swivel_angle(state.shoulder, state.elbow, state.wrist)
+        return np.nan_to_num(eea_residual(psi, self.target(state, sample, psi)))
+
+    def jacobian(self, state, sample):
+        psi = swivel_angle(state.shoulder, state.elbow, state.wrist)
+        return np.where(np.isfinite(psi)[..., None], swivel_jacobian(state) / np.pi, 0.0)
+
+    def cost(self, e):
+        return eea_cost(e)
+
+    def cost_gradient(self, e):
+        return np.sign(e) / e.shape[-1]
+
+
+class EEA_r(EEA):  # noqa: N801 - the paper's name
+    """EEA^r: as EEA, toward whichever of Ψ_human and the recorded human's Ψ_MMM is nearer."""
+
+    name, gamma, x0, weight = "EEA_r", 6.0, 0.1, 1 / 20
+    needs_sample = True
+
+    def target(self, state, sample, psi):
+        return eea_r_target(psi, super().target(state, sample, psi), sample.psi_mmm)

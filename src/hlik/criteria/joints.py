@@ -11,6 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from hlik.criteria.angles import joint_difference
+from hlik.criteria.base import Criterion
 from hlik.human.kinematics import human_model
 from hlik.robot.model import Robot
 
@@ -85,3 +86,46 @@ def robot_limits(robot: Robot) -> JointBand:
 
 def _unlimited(robot: Robot, idx: np.ndarray) -> np.ndarray:
     return ~np.isfinite(robot.lower[idx])
+
+
+class HJL(Criterion):
+    """HJL: distance to the centre of the human joint limits, in the robot's joint space (e (F, k))."""
+
+    name, gamma, x0, weight = "HJL", 1.0, 0.48, 1 / 15
+    needs_sample, sites = False, ()
+
+    def __init__(self, robot: Robot, learned: object = None):
+        self.band = human_limits(robot)
+        self.constant_jacobian = self.band.jacobian(robot.dof)
+
+    def residual(self, state, sample):
+        return self.band.residual(state.q)
+
+
+class HJA_r(Criterion):  # noqa: N801 - the paper's name
+    """HJA^r: the mapped human pose of the sample as the target of the mapped joints (e (F, k))."""
+
+    name, gamma, x0, weight = "HJA_r", 2.0, 0.35, 1 / 30
+    sites = ()
+
+    def __init__(self, robot: Robot, learned: object = None):
+        self.band = mapped_pose(robot, robot.home)  # targets come from each sample
+        self.constant_jacobian = self.band.jacobian(robot.dof)
+
+    def residual(self, state, sample):
+        band = JointBand(self.band.idx, sample.q_map[:, self.band.idx], self.band.half, self.band.unlimited)
+        return band.residual(state.q)
+
+
+class fJLA(Criterion):  # noqa: N801
+    """fJLA: distance to the centre of the robot's own joint limits (functional, paper Sec. V)."""
+
+    name, functional = "fJLA", True
+    needs_sample, sites = False, ()
+
+    def __init__(self, robot: Robot, learned: object = None):
+        self.band = robot_limits(robot)
+        self.constant_jacobian = self.band.jacobian(robot.dof)
+
+    def residual(self, state, sample):
+        return self.band.residual(state.q)

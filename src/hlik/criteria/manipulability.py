@@ -14,15 +14,21 @@ Matrices are in metres squared per radian squared; Jacobians in the robot base f
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import mujoco
 import numpy as np
 
+from hlik.criteria.base import Criterion, block_norm_gradient
 from hlik.human.kinematics import human_model, qpos_trajectory
 from hlik.human.motion import ARM_JOINTS, HumanMotion
 from hlik.robot.model import SIDES, SITES, Robot
 from hlik.robot.state import RobotState
 
 SITE = SITES.index("manipulability")
+
+if TYPE_CHECKING:
+    from hlik.criteria.learned import Learned
 
 _SQRT2 = np.sqrt(2.0)
 _ROWS, _COLS = np.array([0, 1, 2, 0, 1, 0]), np.array([0, 1, 2, 1, 2, 2])
@@ -242,3 +248,30 @@ def scale_factor(robot: Robot, n: int = 20000, seed: int = 0) -> float:
     """
     rng = np.random.default_rng(seed)
     return float(np.cbrt(_robot_max_det(robot, rng, n) / _human_max_det(rng, n)))
+
+
+class MAN_r(Criterion):  # noqa: N801 - the paper's name
+    """MAN^r: each arm's manipulability, scaled by 1 / lambda_R, to the normalised human's.
+
+    e (F, 12) is the Mandel vector of ``log(T^-1/2 (M_R / lambda) T^-1/2)`` per arm; h the mean over
+    the arms of its norm, the affine-invariant distance (Jaquier et al., Eq. 4).
+    """
+
+    name, gamma, x0, weight = "MAN_r", 0.5, 1.9, 1 / 5
+    sites = value_sites = (SITE,)
+
+    def __init__(self, robot: Robot, learned: Learned):
+        self.robot, self.scale = robot, learned.scale
+
+    def residual(self, state, sample):
+        return man_residual(self.robot, state, sample.manip, self.scale).reshape(len(state.q), 12)
+
+    def jacobian(self, state, sample):
+        jac = man_jacobian(self.robot, state, sample.manip, self.scale)  # (F, 2, 6, n)
+        return jac.reshape(len(state.q), 12, -1)
+
+    def cost(self, e):
+        return man_cost(e.reshape(len(e), 2, 6))
+
+    def cost_gradient(self, e):
+        return block_norm_gradient(e, 2)

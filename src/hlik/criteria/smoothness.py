@@ -1,9 +1,18 @@
-"""MJE: minimum jerk as RelaxedIK's backward difference of the last four configurations (no dt)."""
+"""MJE, minimum jerk, and RelaxedIK's smoothness terms: backward differences of the last configurations.
+
+MJE (paper Sec. III-B, formulas.md §6) is RelaxedIK's jerk approximation
+``q_t - 3 q_t-1 + 3 q_t-2 - q_t-3`` (no dt; x0 assumes 100 Hz), its cost the norm of each arm's part
+averaged over the two arms, as every bimanual criterion. Unlimited joints difference as angles, so a
+joint that winds by 2π has no jerk. :class:`Smoothness` is the solvers' velocity, acceleration and
+jerk term toward the extrapolation of the previous frames.
+"""
 
 from __future__ import annotations
 
 import numpy as np
 
+from hlik.criteria.angles import wrap
+from hlik.criteria.base import Criterion, Term
 from hlik.robot.model import SIDES, Robot
 
 # backward-difference stencils over (q_t, q_t-1, q_t-2, q_t-3)
@@ -13,17 +22,81 @@ JERK = np.array([1.0, -3.0, 3.0, -1.0])
 
 
 def history(q: np.ndarray) -> np.ndarray:
-    """(T, 4, n) windows (q_t, q_t-1, q_t-2, q_t-3); before the start the first frame repeats."""
+    """(T, 3, n) the three configurations before each of ``q`` (T, n), newest first; before the
+    start the first configuration repeats."""
     padded = np.concatenate([np.repeat(q[:1], 3, axis=0), q])
-    return np.stack([padded[3 - k : len(padded) - k] for k in range(4)], axis=1)
+    return np.stack([padded[3 - k : len(padded) - k] for k in range(1, 4)], axis=1)
 
 
-def jerk(q: np.ndarray) -> np.ndarray:
-    """(T, n) jerk approximation q_t - 3 q_t-1 + 3 q_t-2 - q_t-3 of a trajectory (T, n)."""
-    return np.einsum("k,tkn->tn", JERK, history(q))
+def backward_difference(q: np.ndarray, previous: np.ndarray, stencil: np.ndarray, unlimited: np.ndarray):
+    """(F, n) ``stencil . (q_t, q_t-1, q_t-2, q_t-3)`` from q (F, n) and ``previous`` (F, 3, n),
+    with consecutive differences wrapped where ``unlimited`` (n,)."""
+    seq = np.concatenate([q[:, None], previous], axis=1)  # (F, 4, n), newest first
+    steps = seq[:, :-1] - seq[:, 1:]
+    steps = np.where(unlimited, wrap(steps), steps)
+    # a stencil over 4 samples that sums to 0 is a stencil over the 3 steps between them
+    weights = np.cumsum(stencil)[:-1]
+    return np.einsum("k,fkn->fn", weights, steps)
 
 
-def mje_cost(robot: Robot, q: np.ndarray) -> np.ndarray:
-    """(T,) h_MJE: the norm of each arm's jerk, averaged over the two arms."""
-    j = jerk(q)
-    return np.mean([np.linalg.norm(j[:, robot.index(robot.arm_joints[s])], axis=-1) for s in SIDES], axis=0)
+class MJE(Criterion):
+    """MJE: the jerk approximation (F, n), rad per sample³; h the mean over the arms of its norm."""
+
+    name, gamma, x0, weight = "MJE", 1.0, 2e-4, 1 / 5
+    sites = ()
+
+    def __init__(self, robot: Robot, learned: object = None):
+        self.unlimited = np.isinf(robot.lower)
+        self.arms = [robot.index(robot.arm_joints[s]) for s in SIDES]
+        self.constant_jacobian = np.eye(robot.dof)
+
+    def residual(self, state, sample):
+        return backward_difference(state.q, sample.history, JERK, self.unlimited)
+
+    def cost(self, e):
+        return np.mean([np.linalg.norm(e[:, arm], axis=-1) for arm in self.arms], axis=0)
+
+    def cost_gradient(self, e):
+        grad = np.zeros_like(e)
+        for arm in self.arms:
+            part = e[:, arm]
+            grad[:, arm] = (
+                part / np.maximum(np.linalg.norm(part, axis=-1, keepdims=True), 1e-12) / len(self.arms)
+            )
+        return grad
+
+
+class Smoothness(Term):
+    """Velocity, acceleration and jerk toward the extrapolation of the previous frames (RelaxedIK),
+    as one least-squares term: ``stencil . (q_t, ..., q_t-3)`` with the identity Jacobian."""
+
+    sites = ()
+
+    def __init__(self, stencil: np.ndarray, robot: Robot, name: str = "smoothness"):
+        self.name, self.stencil, self.unlimited = name, stencil, np.isinf(robot.lower)
+        self.constant_jacobian = np.eye(robot.dof)
+
+    def residual(self, state, sample):
+        return backward_difference(state.q, sample.history, self.stencil, self.unlimited)
+
+    def cost(self, e):
+        return np.linalg.norm(e, axis=-1)  # RelaxedIK's ||q - extrapolation||
+
+    def cost_gradient(self, e):
+        return e / np.maximum(np.linalg.norm(e, axis=-1, keepdims=True), 1e-12)
+
+
+def smoothness_terms(robot: Robot, velocity: float, acceleration: float, jerk: float) -> list[Term]:
+    """RelaxedIK's minimum velocity, acceleration and jerk with the given costs, as one term.
+
+    The three are least squares toward three extrapolations of the same history with the identity
+    Jacobian, so their sum equals one term toward the cost-weighted mean extrapolation (up to a
+    constant): n rows instead of 3 n.
+    """
+    costs = np.array([velocity, acceleration, jerk], dtype=float)
+    if not np.any(costs > 0):
+        return []
+    w = costs**2 / np.sum(costs**2)
+    term = Smoothness(w @ np.stack([VELOCITY, ACCELERATION, JERK]), robot)
+    term.cost_weight = float(np.sqrt(np.sum(costs**2)))
+    return [term]

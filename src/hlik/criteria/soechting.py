@@ -21,8 +21,9 @@ from __future__ import annotations
 import numpy as np
 
 from hlik.criteria.angles import joint_difference
+from hlik.criteria.base import Criterion, block_norm_gradient
 from hlik.robot.model import Robot
-from hlik.robot.state import RobotState
+from hlik.robot.state import RobotState, arm_lengths
 
 MMM_ARM_LENGTH = 0.6  # m, upper arm + forearm of the MMM model scaled to 1.8 m
 _MIRROR = np.array([[-1.0, 1.0, 1.0], [1.0, 1.0, 1.0]])  # per arm (left, right): x -> -x on the left
@@ -150,3 +151,49 @@ def soa_q_jacobian(state: RobotState, idx: np.ndarray) -> np.ndarray:
 def soa_q_cost(residual: np.ndarray) -> np.ndarray:
     """h_SOAq (F,): the mean of the squared residuals (rad²)."""
     return np.mean(np.square(residual), axis=-1)
+
+
+# --- the criteria ----------------------------------------------------------------------------
+
+
+class SOA_x(Criterion):  # noqa: N801 - the paper's name
+    """SOA_x: elbow to its Soechting prediction from the wrist, per upper-arm length (e (F, 6))."""
+
+    name, gamma, x0, weight = "SOA_x", 10.0, 0.2, 1 / 20
+    needs_sample = False
+
+    def __init__(self, robot: Robot, learned: object = None):
+        self.l_u, self.l_f = arm_lengths(robot)
+
+    def residual(self, state, sample):
+        elbow, _ = predict_arm(state.shoulder, state.wrist, self.l_u, self.l_f)
+        return soa_x_residual(state, elbow, self.l_u).reshape(len(state.q), 6)
+
+    def jacobian(self, state, sample):
+        return soa_x_jacobian(state, self.l_u).reshape(len(state.q), 6, -1)
+
+    def cost(self, e):
+        return soa_x_cost(e.reshape(len(e), 2, 3))
+
+    def cost_gradient(self, e):
+        return block_norm_gradient(e, 2)
+
+
+class SOA_q(Criterion):  # noqa: N801
+    """SOA_q: the mapped joints to the predicted shoulder and elbow angles (e (F, k), rad)."""
+
+    name, gamma, x0, weight = "SOA_q", 2.0, 0.34, 1 / 20
+    needs_sample = False
+
+    def __init__(self, robot: Robot, learned: object = None):
+        self.robot = robot
+        self.l_u, self.l_f = arm_lengths(robot)
+
+    def residual(self, state, sample):
+        _, angles = predict_arm(state.shoulder, state.wrist, self.l_u, self.l_f)
+        idx, targets = soa_q_targets(self.robot, angles)
+        return soa_q_residual(self.robot, state, idx, targets)
+
+    def jacobian(self, state, sample):
+        _, angles = predict_arm(state.shoulder[:1], state.wrist[:1], self.l_u, self.l_f)
+        return soa_q_jacobian(state, soa_q_targets(self.robot, angles)[0])

@@ -8,12 +8,18 @@ standard deviation (the robots carry no velocity limits). Fitting lives in :mod:
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy.signal import savgol_filter
 from sklearn.decomposition import PCA
 
 from hlik.criteria.angles import joint_difference
+from hlik.criteria.base import Criterion
+from hlik.robot.model import Robot
+
+if TYPE_CHECKING:
+    from hlik.criteria.learned import Learned
 
 N_COMPONENTS = 5
 SAVGOL_WINDOW, SAVGOL_ORDER = 21, 3  # paper Sec. III-B, at 100 Hz
@@ -64,13 +70,6 @@ class Synergies:
         jac[:, self.idx] = self.basis
         return jac
 
-    def mis_cost(self, qdot: np.ndarray, eps: float = 1e-6) -> np.ndarray:
-        """MIS: (F,) sin^2 of the angle between scaled velocity and the first-order span; 0 at rest."""
-        v = qdot[..., self.idx] / self.vel_scale
-        norm2 = np.sum(v * v, axis=-1)
-        inside = np.sum(np.square(v @ self.vel_basis.T), axis=-1)
-        return np.where(norm2 > eps**2, 1.0 - inside / np.maximum(norm2, eps**2), 0.0)
-
 
 def velocities(q: np.ndarray, dt: float) -> np.ndarray:
     """(T, n) joint velocities by a Savitzky-Golay derivative (order 3, window 21 or shorter)."""
@@ -101,3 +100,81 @@ def fit_synergies(
         vel_basis=vel_pca.components_,
         vel_explained=vel_pca.explained_variance_ratio_,
     )
+
+
+# --- the criteria ----------------------------------------------------------------------------
+
+
+class SYN(Criterion):
+    """SYN: the part of the pose outside the robot's postural synergy subspace (e (F, d), rad)."""
+
+    name, gamma, x0, weight = "SYN", 6.0, 0.12, 1 / 15
+    needs_sample, sites = False, ()
+
+    def __init__(self, robot: Robot, learned: Learned):
+        self.syn = learned.synergies
+        self.constant_jacobian = self.syn.syn_jacobian(robot.dof)
+
+    def residual(self, state, sample):
+        return self.syn.syn_residual(state.q)
+
+
+class SYN_r(Criterion):  # noqa: N801 - the paper's name
+    """SYN^r: the pose minus the mapped human pose, in synergy coordinates (e (F, k), rad)."""
+
+    name, gamma, x0, weight = "SYN_r", 2.0, 0.47, 1 / 30
+    sites = ()
+
+    def __init__(self, robot: Robot, learned: Learned):
+        self.syn = learned.synergies
+        self.constant_jacobian = self.syn.syn_r_jacobian(robot.dof)
+
+    def residual(self, state, sample):
+        return self.syn.syn_r_residual(state.q, sample.q_map)
+
+
+class MIS(Criterion):
+    """MIS: how far the joint velocity leaves the first-order synergy span (formulas.md §3).
+
+    e (F, d) is the scaled joint velocity since the previous sample, ``(q - q_prev) / dt / scale``
+    (unlimited joints as angular distance), and h the paper's misalignment ``sin^2`` of its angle to
+    the span (0 at rest). Solver form: ``sin^2`` is scale-free and not differentiable at rest, so
+    the solvers minimise the velocity outside the span instead, ``||(I - U^T U) e||^2`` (a
+    velocity penalty, formulas.md §9), and report h.
+    """
+
+    name, gamma, x0, weight = "MIS", 1.0, 0.49, 1 / 5
+    sites = ()
+
+    def __init__(self, robot: Robot, learned: Learned):
+        syn = learned.synergies
+        self.syn, self.n = syn, robot.dof
+        self.outside = np.eye(len(syn.idx)) - syn.vel_basis.T @ syn.vel_basis
+
+    def residual(self, state, sample):
+        d = joint_difference(state.q[:, self.syn.idx], sample.history[:, 0, self.syn.idx], self.syn.unlimited)
+        return d / sample.dt / self.syn.vel_scale
+
+    def jacobian(self, state, sample):
+        jac = np.zeros((len(self.syn.idx), self.n))
+        jac[:, self.syn.idx] = np.diag(1.0 / (sample.dt * self.syn.vel_scale))
+        return np.broadcast_to(jac, (len(state.q), *jac.shape))
+
+    def cost(self, e):
+        norm2 = np.sum(e * e, axis=-1)
+        inside = np.sum(np.square(e @ self.syn.vel_basis.T), axis=-1)
+        return np.where(norm2 > 1e-12, 1.0 - inside / np.maximum(norm2, 1e-12), 0.0)
+
+    def cost_gradient(self, e):
+        norm2 = np.sum(e * e, axis=-1, keepdims=True)
+        inside = e @ self.syn.vel_basis.T @ self.syn.vel_basis
+        safe = np.maximum(norm2, 1e-12)
+        grad = -2.0 * inside / safe + 2.0 * np.sum(inside * e, axis=-1, keepdims=True) * e / safe**2
+        return np.where(norm2 > 1e-12, grad, 0.0)
+
+    def __call__(self, state, sample):
+        jac = self.jacobian(state, sample)[0]
+        return self.outside @ self.residual(state, sample)[0], self.outside @ jac
+
+    def metric(self, e):
+        return float(np.mean(e * e)), 2.0 * e / len(e)

@@ -1,7 +1,7 @@
-"""The unified metric: logistic normalisation (paper Eq. 1), m_hl (Eq. 2, Table III), m_f and m_hl,f.
+"""The unified metric: logistic normalisation (paper Eq. 1), m_hl (Eq. 2), m_f and m_hl,f.
 
-Constants are the paper's: Table II (gamma, used by the solvers), Table III (x0 and hierarchical
-weights), Sec. V (x0 of the functional criteria per scenario).
+Each criterion carries its own Table II gamma and Table III x0 and weight
+(:mod:`hlik.criteria.registry`); the functional criteria's x0 depend on the scenario (Sec. V).
 """
 
 from __future__ import annotations
@@ -11,19 +11,8 @@ from types import MappingProxyType
 
 import numpy as np
 
-CRITERIA = ("EEA", "SOA_x", "SOA_q", "HJL", "SYN", "MIS", "MJE", "HJA_r", "SYN_r", "EEA_r", "MAN_r")
+from hlik.criteria import registry
 
-# Table III: logistic mid-points and inverse hierarchical weights.
-X0: Mapping[str, float] = MappingProxyType(
-    dict(zip(CRITERIA, (0.3, 0.2, 0.34, 0.48, 0.12, 0.49, 2e-4, 0.35, 0.47, 0.1, 1.9)))
-)
-WEIGHTS: Mapping[str, float] = MappingProxyType(
-    {k: 1.0 / w for k, w in zip(CRITERIA, (20, 20, 20, 15, 15, 5, 5, 30, 30, 20, 5))}
-)
-# Table II: scaling weights of the criteria as solver costs (MJE is part of OPT itself).
-GAMMA: Mapping[str, float] = MappingProxyType(
-    dict(zip(CRITERIA[:6] + CRITERIA[7:], (4, 10, 2, 1, 6, 1, 2, 2, 6, 0.5)))
-)
 # Sec. V: functional criteria and their mid-points, per scenario.
 FUNCTIONAL_X0: Mapping[str, Mapping[str, float]] = MappingProxyType(
     {
@@ -37,8 +26,16 @@ ALPHA = 0.5
 
 
 def midpoints(scenario: str = "pose") -> dict[str, float]:
-    """x0 of every criterion scored in ``scenario``: the 11 of Table III, then the functional ones."""
-    return {**X0, **FUNCTIONAL_X0[scenario]}
+    """x0 of every criterion scored in ``scenario``: the human-likeness ones, then the functional ones."""
+    x0 = {name: registry.criterion_class(name).x0 for name in registry.human_likeness()}
+    return {**x0, **FUNCTIONAL_X0[scenario]}
+
+
+def gamma(name: str, overrides: Mapping[str, float] | None = None) -> float:
+    """Table II's gamma of criterion ``name``, unless ``overrides`` gives another."""
+    if overrides and name in overrides:
+        return float(overrides[name])
+    return registry.criterion_class(name).gamma
 
 
 def logistic(x: np.ndarray, x0: float) -> np.ndarray:
@@ -53,8 +50,8 @@ def score(h: np.ndarray, x0: float) -> float:
 
 
 def hierarchical(m: Mapping[str, float]) -> float:
-    """m_hl = sum_i w_i m_i (Eq. 2) over the 11 criteria."""
-    return float(sum(WEIGHTS[k] * m[k] for k in CRITERIA))
+    """m_hl = sum_i w_i m_i (Eq. 2) over the human-likeness criteria (Table III weights)."""
+    return float(sum(registry.criterion_class(k).weight * m[k] for k in registry.human_likeness()))
 
 
 def functional(m: Mapping[str, float], scenario: str = "pose") -> float:

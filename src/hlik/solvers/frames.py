@@ -1,7 +1,8 @@
 """The frame loop the optimising solvers share: warm start, the previous solutions, progress.
 
 Every frame is solved from the previous frame's solution (the first from the clipped mapped human
-pose, as JM gives it), with the frame's targets and human reference in a :class:`hlik.terms.Frame`.
+pose, as JM gives it), with the frame's targets and human reference in a
+:class:`hlik.criteria.base.Sample` of one row.
 """
 
 from __future__ import annotations
@@ -10,19 +11,20 @@ from collections.abc import Callable
 
 import numpy as np
 
-from hlik.criteria.terms import Frame
+from hlik.criteria.base import Sample
 from hlik.human.motion import HumanMotion
 from hlik.problem.placement import Placement
 from hlik.problem.reference import HumanReference, human_reference
 from hlik.problem.targets import HandTargets
 from hlik.robot.model import Robot
 
-FrameSolver = Callable[[int, Frame, np.ndarray], np.ndarray]
+FrameSolver = Callable[[int, Sample, np.ndarray], np.ndarray]
 
 
-def frame_at(ref: HumanReference, targets: HandTargets, k: int, history: np.ndarray, dt: float) -> Frame:
-    """The context of frame ``k``; ``history`` (3, n) holds the previous solutions, newest first."""
-    return Frame(targets.pos[k], targets.rot[k], ref.q_map[k], ref.psi[k], ref.manip[k], history, dt)
+def sample_at(ref: HumanReference, targets: HandTargets, k: int, history: np.ndarray, dt: float) -> Sample:
+    """The one-row :class:`Sample` of frame ``k``; ``history`` (3, n): previous solutions, newest first."""
+    s = slice(k, k + 1)
+    return Sample(targets.pos[s], targets.rot[s], ref.q_map[s], ref.psi[s], ref.manip[s], history[None], dt)
 
 
 def track(
@@ -44,7 +46,7 @@ def track(
     history = np.tile(q, (3, 1))
     out = np.empty((motion.n_frames, robot.dof))
     for k in range(motion.n_frames):
-        q = solve_frame(k, frame_at(ref, targets, k, history, dt), q)
+        q = solve_frame(k, sample_at(ref, targets, k, history, dt), q)
         # RelaxedIK resets the history to the first solution
         history = np.tile(q, (3, 1)) if k == 0 else np.vstack([q, history[:2]])
         out[k] = q

@@ -21,9 +21,10 @@ from dataclasses import dataclass, field, replace
 import mujoco
 import numpy as np
 
+from hlik.criteria import registry, unified
+from hlik.criteria.base import Sample, Term
+from hlik.criteria.functional import fORI, fORI_off, target_terms
 from hlik.criteria.learned import Learned, learn
-from hlik.criteria.terms import Frame, Orientation, RelativeOrientation, Term, criterion_term, target_terms
-from hlik.criteria.unified import GAMMA
 from hlik.human.motion import HumanMotion
 from hlik.problem.placement import Placement
 from hlik.problem.targets import HandTargets
@@ -64,7 +65,7 @@ class JVSettings:
 
     criteria: tuple[str, ...] = ()
     scenario: str = "pose"
-    gamma: Mapping[str, float] = field(default_factory=lambda: GAMMA)
+    gamma: Mapping[str, float] = field(default_factory=dict)
     weight: float = 0.1
     jla_gamma: float = 4.0
     step: float = 0.5
@@ -167,28 +168,28 @@ def criterion_terms(robot: Robot, settings: JVSettings, learned: Learned | None)
     """The criteria of ``settings``, each with its null-space weight w_i as ``cost``."""
     terms = []
     for name in settings.criteria:
-        term = criterion_term(name, robot, learned)
-        term.cost = settings.weight * settings.gamma.get(name, 1.0) / len(settings.criteria)
+        term = registry.criterion(name, robot, learned)
+        term.cost_weight = settings.weight * unified.gamma(name, settings.gamma) / len(settings.criteria)
         terms.append(term)
     return terms
 
 
 def primary(
-    targets: Sequence[Term], state: RobotState, frame: Frame, orientation_weight: float
+    targets: Sequence[Term], state: RobotState, frame: Sample, orientation_weight: float
 ) -> tuple[np.ndarray, np.ndarray]:
     """Stacked residual e (m,) and Jacobian J (m, n) of the target terms, orientation rows weighted."""
-    rotational = (Orientation, RelativeOrientation)
+    rotational = (fORI, fORI_off)
     rows = [(orientation_weight if isinstance(t, rotational) else 1.0, *t(state, frame)) for t in targets]
     return np.concatenate([w * e for w, e, _ in rows]), np.vstack([w * jac for w, _, jac in rows])
 
 
 def secondary(
-    criteria: Sequence[Term], state: RobotState, frame: Frame, jla: np.ndarray, settings: JVSettings
+    criteria: Sequence[Term], state: RobotState, frame: Sample, jla: np.ndarray, settings: JVSettings
 ) -> np.ndarray:
     """Gradient (n,) of the null-space cost sum_i w_i h_i + w_H H; ``jla`` is dH/dq (n,)."""
     grad = settings.weight * settings.jla_gamma * jla
     for term in criteria:
-        grad = grad + term.cost * term.gradient(state, frame)[1]
+        grad = grad + term.cost_weight * term.gradient(state, frame)[1]
     return grad
 
 
@@ -197,7 +198,7 @@ def step(
     targets: Sequence[Term],
     criteria: Sequence[Term],
     q: np.ndarray,
-    frame: Frame,
+    frame: Sample,
     settings: JVSettings,
     memory: Memory,
     data: mujoco.MjData | None = None,
@@ -246,7 +247,7 @@ def solve(
     data = mujoco.MjData(robot.model)
     memory = None
 
-    def solve_frame(k: int, frame: Frame, q: np.ndarray) -> np.ndarray:
+    def solve_frame(k: int, frame: Sample, q: np.ndarray) -> np.ndarray:
         nonlocal memory
         if memory is None:
             memory = Memory(

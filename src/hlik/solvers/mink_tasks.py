@@ -1,7 +1,7 @@
 """hlik's criteria as mink tasks and limits, usable in a plain ``mink.solve_ik`` beside mink's own.
 
-:class:`CriterionTask` adapts any :class:`hlik.terms.Term` (the same residual and Jacobian the QP
-solver and the metrics use); the frame context is set per frame with :meth:`CriterionTask.set_frame`.
+:class:`CriterionTask` adapts any :class:`hlik.criteria.base.Term` (the same residual and Jacobian the
+QP solver and the metrics use); the frame's context is set per frame with :meth:`CriterionTask.set_sample`.
 :class:`HumanJointLimit` keeps the mapped joints inside the human's range as hard inequalities.
 """
 
@@ -12,9 +12,10 @@ import mujoco
 import numpy as np
 from mink.limits import Constraint, Limit
 
+from hlik.criteria import registry
+from hlik.criteria.base import Sample, Term
 from hlik.criteria.joints import human_limits
 from hlik.criteria.learned import Learned
-from hlik.criteria.terms import Frame, Term, criterion_term
 from hlik.robot.model import Robot
 from hlik.robot.state import robot_state
 
@@ -25,7 +26,8 @@ class CriterionTask(mink.Task):
     def __init__(
         self, robot: Robot, term: Term, cost: float = 1.0, gain: float = 1.0, lm_damping: float = 0.0
     ):
-        self.robot, self.term, self.frame = robot, term, None
+        self.robot, self.term = robot, term
+        self.sample: Sample | None = None
         self._scale = float(cost)
         self._data = mujoco.MjData(robot.model)
         super().__init__(cost=np.ones(0), gain=gain, lm_damping=lm_damping)
@@ -33,11 +35,11 @@ class CriterionTask(mink.Task):
     @classmethod
     def criterion(cls, name: str, robot: Robot, learned: Learned, cost: float = 1.0) -> CriterionTask:
         """The task of a paper criterion (``EEA``, ``SOA_x``, ..., ``MAN_r``)."""
-        return cls(robot, criterion_term(name, robot, learned), cost)
+        return cls(robot, registry.criterion(name, robot, learned), cost)
 
-    def set_frame(self, frame: Frame) -> None:
-        """Set the frame context (hand targets, mapped human pose, previous solutions)."""
-        self.frame = frame
+    def set_sample(self, sample: Sample) -> None:
+        """Set the frame's context (hand targets, mapped human pose, previous solutions; one row)."""
+        self.sample = sample
 
     def compute_error(self, configuration: mink.Configuration) -> np.ndarray:
         return self._residual(configuration)[0]
@@ -50,12 +52,12 @@ class CriterionTask(mink.Task):
         return self._weighted_residual(*self._residual(configuration))
 
     def _residual(self, configuration: mink.Configuration) -> tuple[np.ndarray, np.ndarray]:
-        if self.frame is None and self.term.needs_frame:
+        if self.sample is None and self.term.needs_sample:
             raise mink.exceptions.TargetNotSet(type(self).__name__)
         state = robot_state(self.robot, configuration.q, jacobians=True, data=self._data)
-        e, jac = self.term(state, self.frame)
+        e, jac = self.term(state, self.sample)  # type: ignore[arg-type]  # None only if not needed
         # mink reads the cost vector's length as the task dimension
-        self.cost = self._scale * np.broadcast_to(self.term.cost, e.shape).astype(float)
+        self.cost = self._scale * np.broadcast_to(self.term.cost_weight, e.shape).astype(float)
         return e, jac
 
 

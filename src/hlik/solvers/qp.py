@@ -18,9 +18,11 @@ import mujoco
 import numpy as np
 import qpsolvers
 
+from hlik.criteria import registry, unified
+from hlik.criteria.base import Sample, Term
+from hlik.criteria.functional import target_terms
 from hlik.criteria.learned import Learned, learn
-from hlik.criteria.terms import Frame, Term, criterion_term, smoothness_terms, target_terms
-from hlik.criteria.unified import GAMMA
+from hlik.criteria.smoothness import smoothness_terms
 from hlik.human.motion import HumanMotion
 from hlik.problem.placement import Placement
 from hlik.problem.targets import HandTargets
@@ -39,7 +41,7 @@ class QPSettings:
             (paper Eqs. 3-4) and the TCP poses only at the first frame (Sec. V-B).
         position_cost, orientation_cost: TCP pose term weights, per metre and per radian.
         relative_position_cost, relative_orientation_cost: Relative pose weights (``relative``).
-        gamma: Criterion name -> scaling weight (Table II; 1 where absent).
+        gamma: Criterion name -> scaling weight, overriding the criterion's Table II gamma.
         criterion_cost: Objective weight of the criteria: criterion i adds
             ``gamma_i * criterion_cost / len(criteria) * ||e_i||^2`` (divided by the number of
             criteria as in the paper; its least-squares cost is the square root).
@@ -53,7 +55,7 @@ class QPSettings:
 
     criteria: tuple[str, ...] = ()
     scenario: str = "pose"
-    gamma: Mapping[str, float] = field(default_factory=lambda: GAMMA)
+    gamma: Mapping[str, float] = field(default_factory=dict)
     position_cost: float = 10.0
     orientation_cost: float = 2.0
     relative_position_cost: float = 10.0
@@ -79,15 +81,17 @@ def build_terms(
     scenario = scenario or settings.scenario
     position, orientation = target_terms(scenario)
     if scenario == "relative":
-        position.cost, orientation.cost = settings.relative_position_cost, settings.relative_orientation_cost
+        position.cost_weight = settings.relative_position_cost
+        orientation.cost_weight = settings.relative_orientation_cost
     else:
-        position.cost, orientation.cost = settings.position_cost, settings.orientation_cost
-    terms = [t for t in (position, orientation) if t.cost > 0]
-    terms += smoothness_terms(robot.dof, settings.velocity, settings.acceleration, settings.jerk)
+        position.cost_weight, orientation.cost_weight = settings.position_cost, settings.orientation_cost
+    terms: list[Term] = [t for t in (position, orientation) if np.all(np.asarray(t.cost_weight) > 0)]
+    terms += smoothness_terms(robot, settings.velocity, settings.acceleration, settings.jerk)
     for name in settings.criteria:
-        term = criterion_term(name, robot, learned)
+        term = registry.criterion(name, robot, learned)
         # the objective weighs ||e_i||^2 by gamma_i * criterion_cost / k, as the paper weighs h_i
-        term.cost = np.sqrt(settings.gamma.get(name, 1.0) * settings.criterion_cost / len(settings.criteria))
+        weight = unified.gamma(name, settings.gamma) * settings.criterion_cost / len(settings.criteria)
+        term.cost_weight = float(np.sqrt(weight))
         terms.append(term)
     return terms
 
@@ -105,7 +109,7 @@ class Assembly:
         self.hessian = damping * np.eye(n)
         self.weights, self.gradient_maps = [], []
         for term in self.terms:
-            w = np.asarray(term.cost, dtype=float)
+            w = np.asarray(term.cost_weight, dtype=float)
             jac = term.constant_jacobian
             self.weights.append(w[:, None] if w.ndim else w)
             self.gradient_maps.append(None if jac is None else (np.square(self.weights[-1]) * jac).T)
@@ -117,7 +121,7 @@ def step(
     robot: Robot,
     stack: Assembly,
     q: np.ndarray,
-    frame: Frame,
+    frame: Sample,
     settings: QPSettings,
     data: mujoco.MjData | None = None,
 ) -> np.ndarray:
@@ -176,7 +180,7 @@ def solve(
     steps = np.zeros(motion.n_frames, dtype=int)
     data = mujoco.MjData(robot.model)
 
-    def solve_frame(k: int, frame: Frame, q: np.ndarray) -> np.ndarray:
+    def solve_frame(k: int, frame: Sample, q: np.ndarray) -> np.ndarray:
         stack = first if k == 0 else terms
         max_iter = settings.max_iter * (10 if k == 0 else 1)
         q, steps[k] = iterate(

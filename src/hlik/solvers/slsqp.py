@@ -21,19 +21,11 @@ import mujoco
 import nlopt
 import numpy as np
 
+from hlik.criteria import registry, unified
+from hlik.criteria.base import Sample, Term
+from hlik.criteria.functional import fORI, fORI_off, fPOS, fPOS_off
 from hlik.criteria.learned import Learned, learn
-from hlik.criteria.smoothness import ACCELERATION, JERK, VELOCITY
-from hlik.criteria.terms import (
-    Frame,
-    Orientation,
-    Position,
-    RelativeOrientation,
-    RelativePosition,
-    Smooth,
-    Term,
-    criterion_term,
-)
-from hlik.criteria.unified import GAMMA
+from hlik.criteria.smoothness import ACCELERATION, JERK, VELOCITY, Smoothness
 from hlik.human.motion import HumanMotion
 from hlik.problem.placement import Placement
 from hlik.problem.targets import HandTargets
@@ -44,10 +36,7 @@ from hlik.solvers.frames import as_solver, track
 # Sec. IV-A's gamma_p = 10 for the TCP position. The relative position (m, like fPOS) gets it too:
 # with 1 the groove's well (c = 0.1) is 10 cm wide and SLSQP leaves fPOS^off at 10-50 cm on the
 # demo; with 10 it is a few mm (Sec. V-B's x0: 3 cm).
-POSITION_TERMS = ("position", "relative_position")
-
-# Terms whose value (not only its Jacobian) reads site Jacobians: MAN^r is built from the TCP's.
-VALUE_SITES: Mapping[str, tuple[int, ...]] = MappingProxyType({"MAN_r": (4,)})
+POSITION_TERMS = ("fPOS", "fPOS_off")
 
 # Criteria whose Jacobian holds a configuration-dependent prediction fixed (Psi_human from the hand
 # pose, Soechting's elbow and joint angles from the wrist): a Gauss-Newton step for the QP, but not
@@ -116,7 +105,7 @@ class SLSQPSettings:
     acceleration: float = 2.0
     jerk: float = 1.0
     criterion: float = 10.0
-    gamma: Mapping[str, float] = field(default_factory=lambda: GAMMA)
+    gamma: Mapping[str, float] = field(default_factory=dict)
     position_gamma: float = 10.0
     gradients: str = "analytic"
     ftol_rel: float = 1e-6
@@ -165,20 +154,21 @@ def build_losses(
         settings = replace(
             pose, criteria=settings.criteria, gamma=settings.gamma, position_gamma=settings.position_gamma
         )
-    n = robot.dof
     weighted: list[tuple[Term, float]] = [
-        (Position(), settings.position),
-        (Orientation(), settings.orientation),
-        (RelativePosition(), settings.relative_position),
-        (RelativeOrientation(), settings.relative_orientation),
-        (Smooth("velocity", VELOCITY, n), settings.velocity),
-        (Smooth("acceleration", ACCELERATION, n), settings.acceleration),
-        (Smooth("jerk", JERK, n), settings.jerk),
+        (fPOS(), settings.position),
+        (fORI(), settings.orientation),
+        (fPOS_off(), settings.relative_position),
+        (fORI_off(), settings.relative_orientation),
+        (Smoothness(VELOCITY, robot, "velocity"), settings.velocity),
+        (Smoothness(ACCELERATION, robot, "acceleration"), settings.acceleration),
+        (Smoothness(JERK, robot, "jerk"), settings.jerk),
     ]
     for name in settings.criteria:
-        weighted.append((criterion_term(name, robot, learned), settings.criterion / len(settings.criteria)))
+        weighted.append(
+            (registry.criterion(name, robot, learned), settings.criterion / len(settings.criteria))
+        )
     gamma = {name: settings.position_gamma for name in POSITION_TERMS}
-    gamma |= {name: settings.gamma.get(name, 1.0) for name in settings.criteria}
+    gamma |= {name: unified.gamma(name, settings.gamma) for name in settings.criteria}
     return [Loss(t, float(w), float(gamma.get(t.name, 1.0))) for t, w in weighted if w > 0]
 
 
@@ -198,13 +188,13 @@ class Objective:
         self.caps = np.array([NUMERIC_GRADIENT[self.losses[i].term.name] for i in self.numeric])
         # one FK pass computes only the site Jacobians the terms read (for fd: their values read)
         self.sites = _sites(loss.term.sites for loss in self.losses)
-        self.value_sites = _sites(VALUE_SITES.get(loss.term.name, ()) for loss in self.losses)
+        self.value_sites = _sites(loss.term.value_sites for loss in self.losses)
         self.weights = np.array([loss.weight for loss in self.losses])
         self.gammas = np.array([loss.gamma for loss in self.losses])
         self.data = mujoco.MjData(robot.model)
         self.reset()
 
-    def reset(self, frame: Frame | None = None) -> None:
+    def reset(self, frame: Sample | None = None) -> None:
         """Start a frame: forget the best configuration and the evaluation count."""
         self.frame = frame
         self.best, self.best_value, self.evaluations = None, np.inf, 0
@@ -298,7 +288,7 @@ def make_optimizer(robot: Robot, settings: SLSQPSettings) -> nlopt.opt:
 
 
 def solve_frame(
-    opt: nlopt.opt, objective: Objective, frame: Frame, q0: np.ndarray, max_eval: int
+    opt: nlopt.opt, objective: Objective, frame: Sample, q0: np.ndarray, max_eval: int
 ) -> tuple[np.ndarray, int]:
     """Minimise ``objective`` at ``frame`` from ``q0`` (n,), within the bounds.
 
@@ -346,7 +336,7 @@ def solve(
     evaluations = np.zeros(motion.n_frames, dtype=int)
     status = np.zeros(motion.n_frames, dtype=int)
 
-    def solve_frame_k(k: int, frame: Frame, q: np.ndarray) -> np.ndarray:
+    def solve_frame_k(k: int, frame: Sample, q: np.ndarray) -> np.ndarray:
         obj, max_eval = (first, settings.first_eval) if k == 0 else (objective, settings.max_eval)
         q, status[k] = solve_frame(opt, obj, frame, q, max_eval)
         evaluations[k] = obj.evaluations

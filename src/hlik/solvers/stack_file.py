@@ -1,7 +1,8 @@
 """Task-stack files (``tasks/*.toml``): the targets, the human-likeness criteria and each solver's weights.
 
 A stack file names the scenario (``pose``: both TCPs follow the hands; ``relative``: the relative pose
-of the hands), the criteria to add, Table II's gamma per criterion, and one table of settings per
+of the hands), the criteria to add, optionally a ``[gamma]`` table overriding a criterion's Table II
+gamma, and one table of settings per
 solver (``[qp]``, ``[jv]``, ``[slsqp]``, the fields of that solver's settings class). Each added
 criterion weighs ``gamma_i * criterion weight / len(criteria)``, as in the paper.
 """
@@ -15,7 +16,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from types import MappingProxyType
 
-from hlik.criteria.unified import CRITERIA, GAMMA
+from hlik.criteria import registry
 from hlik.errors import HlikError
 from hlik.paths import tasks_dir
 
@@ -36,14 +37,14 @@ class Stack:
         name: Stack name (the file stem).
         scenario: ``pose`` or ``relative``.
         criteria: Human-likeness criteria added to the stack (paper names).
-        gamma: Criterion name -> Table II scaling weight.
+        gamma: Criterion name -> scaling weight overriding the criterion's Table II gamma.
         solvers: Solver name -> settings overrides (field name -> value).
     """
 
     name: str
     scenario: str = "pose"
     criteria: tuple[str, ...] = ()
-    gamma: Mapping[str, float] = field(default_factory=lambda: GAMMA)
+    gamma: Mapping[str, float] = field(default_factory=dict)
     solvers: Mapping[str, Mapping[str, object]] = field(default_factory=dict)
 
     def with_criteria(self, criteria: Sequence[str]) -> Stack:
@@ -114,7 +115,7 @@ def _parse(raw: dict, path: Path) -> Stack:
     if not isinstance(criteria, list) or not all(isinstance(c, str) for c in criteria):
         raise HlikError(f'{path}: criteria must be a list of names, e.g. ["SYN", "HJA_r"]')
     _check_criteria(tuple(criteria), path)
-    gamma = dict(GAMMA)
+    gamma = {}
     for name, value in raw.get("gamma", {}).items():
         _check_criteria((name,), path)
         gamma[name] = _number(value, path, f"gamma.{name}")
@@ -146,9 +147,10 @@ def _check_keys(table: dict, allowed: set[str], path: Path, where: str) -> None:
 
 
 def _check_criteria(criteria: tuple[str, ...], where: object) -> None:
-    unknown = [c for c in criteria if c not in CRITERIA]
+    known = registry.human_likeness()
+    unknown = [c for c in criteria if c not in known]
     if unknown:
-        raise HlikError(f"{where}: unknown criteria {', '.join(unknown)}; choose from: {', '.join(CRITERIA)}")
+        raise HlikError(f"{where}: unknown criteria {', '.join(unknown)}; choose from: {', '.join(known)}")
 
 
 def _value(value: object, default: object, path: Path, key: str) -> object:
