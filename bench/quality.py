@@ -4,7 +4,8 @@ An approach is a solver with the criteria it adds, e.g. ``jm``, ``qp``, ``qp+SYN
 ``slsqp+SYN+HJA_r``. The stack (weights) is ``tasks/ee_pose.toml`` or ``tasks/relative_pose.toml``
 (``--scenario``). Each take is cropped to ``--seconds`` after skipping the first second.
 ``fPOS reach`` is the median over frames whose target lies within 95 % of the arm's length from the
-robot's shoulder (the frames the robot can reach).
+robot's shoulder (the frames the robot can reach); ``capped %`` the share of frames that ended at the
+solver's iteration cap.
 
 Run by hand: ``python bench/quality.py [--robots armar3,armar6] [--approaches qp,qp+SYN]
 [--set criterion_cost=0.1]`` (``--set`` overrides a field of the solvers' settings).
@@ -48,13 +49,14 @@ def run(
     stack = load_stack("relative_pose" if scenario == "relative" else "ee_pose").with_criteria(criteria)
     learned = learn(robot)
     settings = replace(stack.settings(solver), **overrides) if solver != "jm" else None
-    rows, fpos, freach, off, times = [], [], [], [], []
+    rows, fpos, freach, off, times, capped = [], [], [], [], [], []
     for take in takes:
         motion = hlik.load_motion(take, rate=100.0)
         motion = motion.crop(1.0, min(1.0 + seconds, motion.duration))
         start = time.perf_counter()
         traj = hlik.retarget(motion, robot, get_solver(solver, settings, learned))
         times.append((time.perf_counter() - start) / traj.n_frames)
+        capped.append(~traj.diagnostics.converged)
         ev = evaluate(traj, robot, learned, scenario=scenario)
         err = position_error(traj.tcp_pos, traj.targets.pos)
         rows.append((ev.m_hl, ev.m_f, ev.m_hl_f))
@@ -70,6 +72,7 @@ def run(
         "freach": np.median(np.concatenate(freach)),
         "fpos_off": np.median(np.concatenate(off)),
         "ms": 1e3 * np.median(times),
+        "capped": 100 * np.mean(np.concatenate(capped)),
     }
 
 
@@ -88,13 +91,17 @@ def main() -> None:
         raise SystemExit(f"{DATA / 'kit_bimanual'}: no takes (set HLIK_DATA)")
     print(f"{len(takes)} takes x {args.seconds:g} s, scenario {args.scenario}")
     head = f"{'robot':11s} {'approach':18s} {'m_hl':>6s} {'m_f':>6s} {'m_hl,f':>6s} "
-    print(head + f"{'fPOS cm':>8s} {'reach cm':>8s} {'off cm':>7s} {'ms/frame':>8s}", flush=True)
+    print(
+        head + f"{'fPOS cm':>8s} {'reach cm':>8s} {'off cm':>7s} {'ms/frame':>8s} {'capped %':>8s}",
+        flush=True,
+    )
     for robot_name in args.robots.split(","):
         for approach in args.approaches.split(","):
             r = run(robot_name, approach, args.scenario, takes, args.seconds, overrides)
             print(
                 f"{robot_name:11s} {approach:18s} {r['m_hl']:6.3f} {r['m_f']:6.3f} {r['m_hl_f']:6.3f} "
-                f"{100 * r['fpos']:8.2f} {100 * r['freach']:8.2f} {100 * r['fpos_off']:7.2f} {r['ms']:8.2f}",
+                f"{100 * r['fpos']:8.2f} {100 * r['freach']:8.2f} {100 * r['fpos_off']:7.2f} {r['ms']:8.2f} "
+                f"{r['capped']:8.1f}",
                 flush=True,
             )
 

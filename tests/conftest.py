@@ -58,3 +58,17 @@ def reachable_targets():
         return HandTargets(*tcp_poses(robot, joint_mapping(robot, motion)))
 
     return make
+
+
+def solve_problem(solve, robot, motion, targets, placement, settings=None, **kwargs):
+    """Run a solver module's ``solve`` on the problem of ``motion`` with the given targets.
+
+    Returns the joint angles (T, n) and the :class:`~hlik.solvers.base.SolverResult`.
+    """
+    from dataclasses import replace
+
+    from hlik.problem.problem import build_problem
+
+    problem = replace(build_problem(motion, robot, placement), targets=targets)
+    result = solve(problem, settings, **kwargs) if settings is not None else solve(problem, **kwargs)
+    return result.q, result

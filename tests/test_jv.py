@@ -8,6 +8,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from conftest import solve_problem  # noqa: E402
 from hlik import load_motion, load_robot, retarget
 from hlik.criteria.base import Sample
 from hlik.criteria.functional import relative_errors, target_terms
@@ -108,11 +109,11 @@ def test_tracks_reachable_kit_targets_on_armar3(takes, reachable_targets):
     placement = shoulder_placement(r, human)
     targets = reachable_targets(r, motion)
     settings = JVSettings()
-    q, steps = solve(r, motion, targets, placement, settings)
+    q, steps = solve_problem(solve, r, motion, targets, placement, settings)
     fpos = np.linalg.norm(robot_state(r, q).tcp - targets.pos, axis=-1).mean(axis=-1)
     assert np.all(np.isfinite(q)) and _within_limits(r, q)
     assert np.median(fpos) < 1e-5 and np.max(fpos) < 1e-4
-    assert np.median(steps[1:]) < settings.max_iter
+    assert np.median(steps.diagnostics.iterations[1:]) < settings.max_iter
 
 
 def test_unreachable_targets_give_finite_motion_and_report_the_error():
@@ -123,11 +124,11 @@ def test_unreachable_targets_give_finite_motion_and_report_the_error():
     far = hand_targets(human, placement)
     far = replace(far, pos=far.pos + np.array([0.0, 3.0, 0.0]))  # 3 m in front of the robot
     settings = JVSettings(max_iter=30)
-    q, steps = solve(r, motion, far, placement, settings)
+    q, steps = solve_problem(solve, r, motion, far, placement, settings)
     assert np.all(np.isfinite(q)) and _within_limits(r, q)
     fpos = np.linalg.norm(robot_state(r, q).tcp - far.pos, axis=-1).mean(axis=-1)
     assert np.all(fpos > 2.0)  # reported, not hidden
-    assert np.all(steps <= 10 * settings.max_iter)
+    assert np.all(steps.diagnostics.iterations <= 10 * settings.max_iter)
 
 
 @pytest.mark.parametrize("scenario", ["pose", "relative"])
@@ -139,7 +140,7 @@ def test_every_robot_and_scenario(name, scenario):
     placement, targets = _self_targets(r, motion)
     frames = []
     settings = JVSettings(scenario=scenario)
-    q, _ = solve(r, motion, targets, placement, settings, progress=frames.append)
+    q, _ = solve_problem(solve, r, motion, targets, placement, settings, progress=frames.append)
     assert frames == list(range(motion.n_frames))
     assert np.all(np.isfinite(q)) and _within_limits(r, q)
     s = robot_state(r, q)
@@ -169,8 +170,8 @@ def test_criterion_in_the_null_space_lowers_its_cost(takes):
 def test_named_solver_and_settings():
     r = load_robot("dual_panda")
     motion = demo_motion().crop(0, 0.2)
-    assert jv_solver().__name__ == "jv"
+    assert jv_solver().name == "jv"
     traj = retarget(motion, r, "jv")
     assert traj.solver == "jv" and np.all(np.isfinite(traj.q))
     with pytest.raises(ValueError, match="scenario"):
-        solve(r, motion, traj.targets, traj.placement, JVSettings(scenario="hands"))
+        solve_problem(solve, r, motion, traj.targets, traj.placement, JVSettings(scenario="hands"))

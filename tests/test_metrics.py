@@ -36,7 +36,8 @@ TABLE_III = {  # name: (x0, inverse weight), paper Table III
     "MAN_r": (1.9, 5),
 }  # fmt: skip
 TABLE_II = {  # paper Table II (MJE is part of OPT, gamma 1)
-    "EEA": 4, "SOA_x": 10, "SOA_q": 2, "HJL": 1, "SYN": 6, "MIS": 1, "HJA_r": 2, "SYN_r": 2, "EEA_r": 6, "MAN_r": 0.5,
+    "EEA": 4, "SOA_x": 10, "SOA_q": 2, "HJL": 1, "SYN": 6, "MIS": 1, "HJA_r": 2, "SYN_r": 2, "EEA_r": 6,
+    "MAN_r": 0.5,
 }  # fmt: skip
 
 

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
+from conftest import solve_problem  # noqa: E402
 from hlik import load_motion, load_robot, retarget
 from hlik.cli import app
 from hlik.criteria.base import Sample
@@ -98,10 +99,12 @@ def test_reachable_targets_converge_within_the_iteration_limit(robot):
     placement = shoulder_placement(r, forward_kinematics(motion))
     targets = HandTargets(jm.tcp_pos, jm.tcp_rot)
     settings = QPSettings(max_iter=30)
-    q, steps = solve(r, motion, targets, placement, settings)
+    q, steps = solve_problem(solve, r, motion, targets, placement, settings)
     state = robot_state(r, q)
     assert np.median(np.linalg.norm(state.tcp - jm.tcp_pos, axis=-1)) < 1e-3
-    assert np.all(steps[1:] <= settings.max_iter) and np.median(steps[1:]) < settings.max_iter
+    iterations = steps.diagnostics.iterations[1:]
+    assert np.all(iterations <= settings.max_iter) and np.median(iterations) < settings.max_iter
+    assert steps.diagnostics.n_failed == 0 and steps.diagnostics.converged[1:].all()
 
 
 def test_unreachable_targets_give_finite_motion_and_report_the_error():
@@ -111,11 +114,11 @@ def test_unreachable_targets_give_finite_motion_and_report_the_error():
     placement = shoulder_placement(r, human)
     far = hand_targets(human, placement)
     far = replace(far, pos=far.pos + np.array([0.0, 5.0, 0.0]))  # 5 m in front of the robot
-    q, steps = solve(r, motion, far, placement, QPSettings(criteria=("HJA_r",), max_iter=10))
+    q, steps = solve_problem(solve, r, motion, far, placement, QPSettings(criteria=("HJA_r",), max_iter=10))
     assert np.all(np.isfinite(q)) and np.all(q >= r.lower - 1e-9) and np.all(q <= r.upper + 1e-9)
     err = np.linalg.norm(robot_state(r, q).tcp - far.pos, axis=-1)
     assert np.all(err > 4.0)  # reported, not hidden
-    assert np.all(steps <= 100)
+    assert np.all(steps.diagnostics.iterations <= 100)
 
 
 def test_criteria_improve_their_own_score(takes):

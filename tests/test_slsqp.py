@@ -8,6 +8,7 @@ import nlopt
 import numpy as np
 import pytest
 
+from conftest import solve_problem  # noqa: E402
 from hlik import load_motion, load_robot, retarget
 from hlik.criteria.functional import relative_errors
 from hlik.criteria.learned import learn
@@ -132,8 +133,8 @@ def test_unlimited_joints_keep_infinite_bounds_and_limited_joints_stay_within_th
     assert unlimited.sum() == 6
     opt = make_optimizer(r, SLSQPSettings())
     assert np.all(np.isinf(np.asarray(opt.get_lower_bounds())[unlimited]))
-    q, info = solve(r, motion, targets, placement, SLSQPSettings(criteria=("SYN",)))
-    assert np.all(np.isfinite(q)) and info.failed == ()
+    q, info = solve_problem(solve, r, motion, targets, placement, SLSQPSettings(criteria=("SYN",)))
+    assert np.all(np.isfinite(q)) and not np.any(info.diagnostics.failed)
     assert np.all(q[:, ~unlimited] >= r.lower[~unlimited]) and np.all(q[:, ~unlimited] <= r.upper[~unlimited])
     assert np.median(_fpos(r, q, targets.pos)) < 0.05
 
@@ -146,8 +147,8 @@ def test_a_frame_with_nan_targets_fails_alone_and_keeps_the_last_configuration(m
         return replace(frame, target_pos=frame.target_pos * np.nan) if k == 3 else frame
 
     monkeypatch.setattr(frames, "sample_at", nan_at_3)
-    q, info = solve(r, motion, targets, placement)
-    assert info.failed == (3,) and info.status[3] == nlopt.FAILURE
+    q, info = solve_problem(solve, r, motion, targets, placement)
+    assert tuple(np.flatnonzero(info.diagnostics.failed)) == (3,) and info.info["status"][3] == nlopt.FAILURE
     assert np.all(np.isfinite(q))
     np.testing.assert_array_equal(q[3], q[2])  # nothing finite was evaluated: the last good one
     assert np.median(_fpos(r, q[4:], targets.pos[4:])) < 0.01  # and the run goes on
@@ -156,7 +157,7 @@ def test_a_frame_with_nan_targets_fails_alone_and_keeps_the_last_configuration(m
 @pytest.mark.parametrize("error", [nlopt.RoundoffLimited, nlopt.runtime_error], ids=lambda e: e.__name__)
 def test_an_nlopt_exception_keeps_the_best_configuration_evaluated(monkeypatch, error):
     r, motion, placement, targets = _problem("armar3", 2.0, 2.2)
-    reference, _ = solve(r, motion, targets, placement)
+    reference, _ = solve_problem(solve, r, motion, targets, placement)
     optimize, calls = nlopt.opt.optimize, []
 
     def raising(self, x0):
@@ -167,9 +168,9 @@ def test_an_nlopt_exception_keeps_the_best_configuration_evaluated(monkeypatch, 
         return x
 
     monkeypatch.setattr(nlopt.opt, "optimize", raising)
-    q, info = solve(r, motion, targets, placement)
+    q, info = solve_problem(solve, r, motion, targets, placement)
     code = nlopt.ROUNDOFF_LIMITED if error is nlopt.RoundoffLimited else nlopt.FAILURE
-    assert info.failed == (3,) and info.status[3] == code
+    assert tuple(np.flatnonzero(info.diagnostics.failed)) == (3,) and info.info["status"][3] == code
     assert np.all(np.isfinite(q))
     # the best point SLSQP evaluated is (nearly) the optimum it would have returned
     np.testing.assert_allclose(q, reference, atol=1e-6)
@@ -183,9 +184,9 @@ def test_tracks_a_kit_take_on_armar3_with_analytic_and_fd_gradients(takes, reach
     targets = reachable_targets(r, motion)
     medians = {}
     for gradients in ("analytic", "fd"):
-        q, info = solve(r, motion, targets, placement, SLSQPSettings(gradients=gradients))
+        q, info = solve_problem(solve, r, motion, targets, placement, SLSQPSettings(gradients=gradients))
         medians[gradients] = np.median(_fpos(r, q, targets.pos))
-        assert info.failed == () and np.all(info.evaluations[1:] <= 100)
+        assert not np.any(info.diagnostics.failed) and np.all(info.diagnostics.iterations[1:] <= 100)
     assert medians["analytic"] < 1e-3, medians
     assert abs(medians["analytic"] - medians["fd"]) < 1e-3, medians
 
@@ -193,10 +194,10 @@ def test_tracks_a_kit_take_on_armar3_with_analytic_and_fd_gradients(takes, reach
 def test_relative_scenario_tracks_the_relative_pose():
     """Measured on ARMAR-III: median fPOS^off 1.5 mm, fORI^off 0.023 rad, hands free to drift."""
     r, motion, placement, targets = _problem("armar3", 2.0, 3.0)
-    q, info = solve(r, motion, targets, placement, SLSQPSettings.relative())
+    q, info = solve_problem(solve, r, motion, targets, placement, SLSQPSettings.relative())
     state = robot_state(r, q)
     pos_off, ori_off = relative_errors(state.tcp, state.tcp_rot, targets.pos, targets.rot)
-    assert info.failed == ()
+    assert not np.any(info.diagnostics.failed)
     assert np.median(pos_off) < 0.01 and np.median(ori_off) < 0.1, (np.median(pos_off), np.median(ori_off))
     assert _fpos(r, q[:1], targets.pos[:1])[0] < 0.01  # the first frame tracks the hand poses
 
@@ -204,7 +205,7 @@ def test_relative_scenario_tracks_the_relative_pose():
 def test_solver_plugs_into_retarget():
     r, motion, _, _ = _problem("dual_panda", 2.0, 2.1)
     solver = slsqp_solver(SLSQPSettings(max_eval=30))
-    assert solver.__name__ == "slsqp"
+    assert solver.name == "slsqp"
     traj = retarget(motion, r, solver)
     assert traj.solver == "slsqp" and traj.q.shape == (motion.n_frames, r.dof)
-    assert get_solver("slsqp", SLSQPSettings(max_eval=30)).__name__ == "slsqp"
+    assert get_solver("slsqp", SLSQPSettings(max_eval=30)).name == "slsqp"

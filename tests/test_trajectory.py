@@ -36,15 +36,19 @@ def test_round_trip_keeps_every_array(tmp_path, takes):
     np.testing.assert_array_equal(back.targets.pos, traj.targets.pos)
     np.testing.assert_array_equal(back.targets.rot, traj.targets.rot)
     np.testing.assert_array_equal(back.placement.matrix, traj.placement.matrix)
-    ref, ref0 = back.reference, traj.reference
+    for name in ("q_map", "psi", "manip"):  # the human reference, stored, not recomputed
+        np.testing.assert_array_equal(getattr(back.reference, name), getattr(traj.reference, name))
+    for name in ("iterations", "converged", "failed", "solve_time"):
+        np.testing.assert_array_equal(getattr(back.diagnostics, name), getattr(traj.diagnostics, name))
+    ref, ref0 = back.motion, traj.motion
     assert ref.joint_names == ref0.joint_names and ref.height == ref0.height and ref.source == ref0.source
     np.testing.assert_array_equal(ref.joints, ref0.joints)
     assert set(ref.objects) == set(ref0.objects) and ref.objects
     for name, obj in ref0.objects.items():
         np.testing.assert_array_equal(ref.objects[name].rotation, obj.rotation)
         assert set(ref.objects[name].markers) == set(obj.markers)
-    # the stored reference reproduces the human; the stored TCP poses are the FK of the stored q
-    np.testing.assert_allclose(forward_kinematics(back.reference).tcp_pos, forward_kinematics(motion).tcp_pos)
+    # the stored motion reproduces the human; the stored TCP poses are the FK of the stored q
+    np.testing.assert_allclose(forward_kinematics(back.motion).tcp_pos, forward_kinematics(motion).tcp_pos)
     np.testing.assert_allclose(tcp_poses(load_robot("armar3"), back.q)[0], back.tcp_pos)
 
 
@@ -152,3 +156,14 @@ def test_tracking_errors_are_metrics():
     np.testing.assert_allclose(rotation_angle(a, a), 0.0, atol=2e-8)
     p, t = rng.normal(size=(50, 3)), rng.normal(size=(50, 3))
     np.testing.assert_allclose(position_error(p, t), np.sqrt(((p - t) ** 2).sum(1)))
+
+
+def test_format_1_files_are_refused_with_a_reason(tmp_path, demo):
+    path = retarget(demo.crop(0, 0.1), load_robot("armar3")).save(tmp_path / "t.npz")
+    with np.load(path) as z:
+        arrays = {k: z[k] for k in z.files}
+    arrays["format"] = np.array("hlik.trajectory/1")
+    old = tmp_path / "old.npz"
+    np.savez(old, **arrays)
+    with pytest.raises(TrajectoryFormatError, match="hlik.trajectory/1.*run hlik run again"):
+        load_trajectory(old)

@@ -142,8 +142,7 @@ def run(
             settings = None if solver == "jm" else task_stack.settings(solver)
             if solver == "slsqp":
                 settings = replace(settings, gradients=gradients)
-            # jm by name: the trajectory records the solver's name
-            traj = retarget(m, r, solver if solver == "jm" else get_solver(solver, settings, learned, step))
+            traj = retarget(m, r, get_solver(solver, settings, learned, step))
             progress.update(task, completed=m.n_frames)
             solve_time = time.perf_counter() - start
             progress.update(task, description="evaluating the criteria")
@@ -185,6 +184,12 @@ def _run_summary(title: str, traj, motion, solve_time: float, rrd: Path, npz: Pa
     table.add_column(overflow="fold")
     table.add_row("frames", f"{traj.n_frames} over {motion.duration:.2f} s at {motion.rate:.1f} Hz")
     table.add_row("solve time", f"{solve_time:.2f} s ({1e3 * solve_time / traj.n_frames:.3f} ms/frame)")
+    d = traj.diagnostics
+    table.add_row(
+        "solver",
+        f"{d.n_failed} failed, {d.n_unconverged} unconverged (at the iteration cap) of "
+        f"{traj.n_frames} frames; median {np.median(d.iterations):.0f} iterations/frame",
+    )
     for i, side in enumerate(("left", "right")):
         table.add_row(
             f"{side} hand",

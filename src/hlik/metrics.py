@@ -13,7 +13,7 @@ from hlik.criteria import registry, unified
 from hlik.criteria.base import Sample
 from hlik.criteria.learned import Learned
 from hlik.criteria.smoothness import history
-from hlik.problem.reference import HumanReference, human_reference
+from hlik.problem.reference import HumanReference
 from hlik.robot.model import Robot
 from hlik.robot.state import robot_state
 from hlik.trajectory import Trajectory
@@ -80,7 +80,7 @@ def costs(traj: Trajectory, robot: Robot, learned: Learned) -> dict[str, np.ndar
     Each is the criterion's own :meth:`~hlik.criteria.base.Term.cost` of its residual, the cost the
     solvers report, computed for all frames after one forward-kinematics pass.
     """
-    sample = trajectory_sample(traj, human_reference(robot, traj.reference, traj.placement))
+    sample = trajectory_sample(traj, traj.reference)
     criteria = [
         registry.criterion(n, robot, learned) for n in registry.human_likeness() + registry.functional()
     ]

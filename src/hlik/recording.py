@@ -12,6 +12,7 @@ Entity tree::
     /plots/joints/<joint>           joint angles, rad
     /plots/fPOS/<side>, /plots/fORI/<side>   tracking errors, m and rad
     /plots/metrics/<criterion>      per-frame scores f_x0(h(t)) of the criteria, in [0, 1]
+    /plots/solver/{iterations,failed}   solver diagnostics per frame
 
 Timelines: ``frame`` (index) and ``time`` (seconds). Everything time-varying goes through
 ``send_columns``; log time is disabled so the same input gives the same file.
@@ -65,7 +66,7 @@ def write_recording(
     if layout not in LAYOUTS:
         raise ValueError(f"layout must be one of {LAYOUTS}, got {layout!r}")
     path = Path(path)
-    recording_id = f"{trajectory.reference.name}-{robot.name}-{trajectory.solver}"
+    recording_id = f"{trajectory.motion.name}-{robot.name}-{trajectory.solver}"
     with atomic_path(path) as tmp:
         rec = rr.RecordingStream("hlik", recording_id=recording_id)
         try:
@@ -87,6 +88,7 @@ def blueprint() -> rrb.Blueprint:
                 rrb.TimeSeriesView(origin="/plots/fPOS", name="fPOS: TCP position error (m)"),
                 rrb.TimeSeriesView(origin="/plots/fORI", name="fORI: TCP orientation error (rad)"),
                 rrb.TimeSeriesView(origin="/plots/metrics", name="human-likeness scores f(h(t)), 1 = best"),
+                rrb.TimeSeriesView(origin="/plots/solver", name="solver: iterations per frame, failed"),
             ),
             column_shares=[3, 2],
         ),
@@ -98,11 +100,11 @@ def _log(rec, traj: Trajectory, robot: Robot, layout: str, metrics: Mapping[str,
     index = _index(np.arange(traj.n_frames), traj.times)
     rec.log("/world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
 
-    human = human_model(traj.reference.height)
-    _log_model(rec, "/world/human/bodies", human, qpos_trajectory(human, traj.reference), index, alpha=200)
+    human = human_model(traj.motion.height)
+    _log_model(rec, "/world/human/bodies", human, qpos_trajectory(human, traj.motion), index, alpha=200)
     human_hands = traj.placement.to_world(traj.targets.pos)
     _log_paths(rec, "/world/human/hand_paths", human_hands, SIDE_COLORS)
-    for name, obj in traj.reference.objects.items():
+    for name, obj in traj.motion.objects.items():
         _log_object(rec, f"/world/objects/{_entity(name)}", obj, traj.times)
 
     shown = _display_placement(traj.placement, layout)
@@ -129,6 +131,9 @@ def _log(rec, traj: Trajectory, robot: Robot, layout: str, metrics: Mapping[str,
         _log_curve(rec, f"/plots/fORI/{side}", fori[:, i], index, f"fORI {side}", SIDE_COLORS[side])
     for name, values in metrics.items():
         _log_curve(rec, f"/plots/metrics/{_entity(name)}", np.asarray(values, dtype=float), index, name)
+    d = traj.diagnostics
+    _log_curve(rec, "/plots/solver/iterations", d.iterations.astype(float), index, "iterations")
+    _log_curve(rec, "/plots/solver/failed", d.failed.astype(float), index, "failed (1)")
 
 
 def _display_placement(placement: Placement, layout: str) -> Placement:

@@ -1,4 +1,5 @@
-"""The retargeting pipeline: motion -> human kinematics -> placement, targets -> solver -> trajectory."""
+"""The retargeting pipeline: motion -> problem (human kinematics, placement, targets, reference)
+-> solver -> trajectory."""
 
 from __future__ import annotations
 
@@ -7,46 +8,57 @@ from dataclasses import replace
 import numpy as np
 
 from hlik.errors import HlikError
-from hlik.human.kinematics import forward_kinematics
 from hlik.human.motion import HumanMotion
-from hlik.problem.placement import Placement, shoulder_placement
-from hlik.problem.targets import hand_targets
+from hlik.problem.placement import Placement
+from hlik.problem.problem import Problem, build_problem
 from hlik.robot.model import Robot, tcp_poses
-from hlik.solvers import SOLVER_NAMES, Solver, get_solver
+from hlik.solvers import SOLVERS, Solver, get_solver
+from hlik.solvers.base import Diagnostics, SolverResult
 from hlik.trajectory import Trajectory
 
 
 def retarget(
     motion: HumanMotion, robot: Robot, solver: str | Solver = "jm", placement: Placement | None = None
 ) -> Trajectory:
-    """Retarget ``motion`` to ``robot`` with ``solver``: a name in ``SOLVER_NAMES``, or a callable.
+    """Retarget ``motion`` to ``robot`` with ``solver``: a name in ``SOLVERS``, or a :class:`Solver`.
 
-    ``placement`` defaults to :func:`hlik.placement.shoulder_placement`.
+    The problem (human kinematics, placement, hand targets, human reference) is built once and
+    handed to the solver; ``placement`` defaults to :func:`hlik.problem.placement.shoulder_placement`.
+    A custom solver may also return bare joint angles (T, n); its diagnostics are then unknown
+    (one pass per frame, nothing failed).
+
+    Raises:
+        HlikError: unknown solver name, or joint angles of the wrong shape.
     """
     if isinstance(solver, str):
-        if solver not in SOLVER_NAMES:
-            raise HlikError(f"unknown solver {solver!r}; choose one of: {', '.join(SOLVER_NAMES)}")
-        name, solve = solver, get_solver(solver)
-    else:
-        name, solve = getattr(solver, "__name__", "custom"), solver
-    human = forward_kinematics(motion)
-    placement = placement or shoulder_placement(robot, human)
-    targets = hand_targets(human, placement)
-    q = np.asarray(solve(robot, motion, targets, placement), dtype=float)
+        if solver not in SOLVERS:
+            raise HlikError(f"unknown solver {solver!r}; choose one of: {', '.join(SOLVERS)}")
+        solver = get_solver(solver)
+    problem = build_problem(motion, robot, placement)
+    return trajectory_of(problem, solver(problem), getattr(solver, "name", type(solver).__name__))
+
+
+def trajectory_of(problem: Problem, result: SolverResult | np.ndarray, solver: str) -> Trajectory:
+    """The :class:`Trajectory` of a solved ``problem``."""
+    if not isinstance(result, SolverResult):
+        result = SolverResult(np.asarray(result, dtype=float), Diagnostics.trivial(problem.n_frames))
+    robot = problem.robot
+    q = np.asarray(result.q, dtype=float)
+    if q.shape != (problem.n_frames, robot.dof):
+        expected = (problem.n_frames, robot.dof)
+        raise HlikError(f"solver {solver!r} returned joint angles of shape {q.shape}, expected {expected}")
     tcp_pos, tcp_rot = tcp_poses(robot, q)
     return Trajectory(
         robot=robot.name,
-        solver=name,
-        times=motion.times,
+        solver=solver,
+        times=problem.motion.times,
         joint_names=robot.joint_names,
         q=q,
         tcp_pos=tcp_pos,
         tcp_rot=tcp_rot,
-        targets=targets,
-        placement=placement,
-        reference=_without_body_markers(motion),
+        targets=problem.targets,
+        placement=problem.placement,
+        motion=replace(problem.motion, markers={}),
+        reference=problem.reference,
+        diagnostics=result.diagnostics,
     )
-
-
-def _without_body_markers(motion: HumanMotion) -> HumanMotion:
-    return replace(motion, markers={})

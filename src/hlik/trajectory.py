@@ -1,8 +1,10 @@
 """The result of retargeting, shared by every solver, with a stable ``.npz`` file format.
 
 A :class:`Trajectory` keeps what metrics and recordings need without solving again: the robot's
-joint angles and TCP poses, the hand targets, the placement and the human reference motion (body
-markers are dropped; objects are kept).
+joint angles and TCP poses, the hand targets, the placement, the human motion (body markers are
+dropped; objects are kept), the human reference the criteria compare to, and the solver's
+per-frame diagnostics. Format 2 added the reference and the diagnostics; format 1 files are
+refused with a message saying so.
 """
 
 from __future__ import annotations
@@ -17,9 +19,11 @@ from hlik.atomic import atomic_path
 from hlik.errors import TrajectoryFormatError
 from hlik.human.motion import HumanMotion, ObjectMotion
 from hlik.problem.placement import Placement
+from hlik.problem.reference import HumanReference
 from hlik.problem.targets import HandTargets
+from hlik.solvers.base import Diagnostics
 
-FORMAT = "hlik.trajectory/1"
+FORMAT = "hlik.trajectory/2"
 
 
 @dataclass(frozen=True, eq=False)
@@ -35,7 +39,9 @@ class Trajectory:
         tcp_pos, tcp_rot: (T, 2, 3), (T, 2, 3, 3) robot TCP poses in the robot base frame.
         targets: The hand targets the trajectory was made for (robot base frame).
         placement: Pose of the robot base in the human's world.
-        reference: The human motion retargeted, on the same time base.
+        motion: The human motion retargeted, on the same time base (no body markers).
+        reference: The human reference of every frame (mapped pose, Ψ, manipulability).
+        diagnostics: How the solver reached each frame.
     """
 
     robot: str
@@ -47,7 +53,9 @@ class Trajectory:
     tcp_rot: np.ndarray
     targets: HandTargets
     placement: Placement
-    reference: HumanMotion
+    motion: HumanMotion
+    reference: HumanReference
+    diagnostics: Diagnostics
 
     @property
     def n_frames(self) -> int:
@@ -76,7 +84,13 @@ def load_trajectory(path: str | Path) -> Trajectory:
         raise TrajectoryFormatError(f"{path}: no such file") from None
     except (OSError, ValueError, zipfile.BadZipFile) as e:
         raise TrajectoryFormatError(f"{path}: not a readable .npz file ({e})") from None
-    if str(arrays.get("format", "")) != FORMAT:
+    found = str(arrays.get("format", ""))
+    if found.startswith("hlik.trajectory/") and found != FORMAT:
+        raise TrajectoryFormatError(
+            f"{path}: written in {found}, this hlik reads {FORMAT} (which adds the human reference and the "
+            "solver diagnostics); run hlik run again to rewrite it"
+        )
+    if found != FORMAT:
         raise TrajectoryFormatError(f"{path}: not an hlik trajectory (expected format {FORMAT!r})")
     try:
         traj = _from_arrays(arrays)
@@ -87,7 +101,7 @@ def load_trajectory(path: str | Path) -> Trajectory:
 
 
 def _to_arrays(t: Trajectory) -> dict[str, np.ndarray]:
-    ref = t.reference
+    ref, d = t.motion, t.diagnostics
     out = {
         "format": np.array(FORMAT),
         "robot": np.array(t.robot),
@@ -110,6 +124,13 @@ def _to_arrays(t: Trajectory) -> dict[str, np.ndarray]:
         "ref.mass": np.array(np.nan if ref.mass is None else ref.mass),
         "ref.source": np.array("" if ref.source is None else str(ref.source)),
         "obj.names": np.array(list(ref.objects), dtype=str),
+        "human.q_map": t.reference.q_map,
+        "human.psi": t.reference.psi,
+        "human.manip": t.reference.manip,
+        "diag.iterations": d.iterations,
+        "diag.converged": d.converged,
+        "diag.failed": d.failed,
+        "diag.solve_time": d.solve_time,
     }
     for i, obj in enumerate(ref.objects.values()):
         out[f"obj.{i}.position"] = obj.position
@@ -126,7 +147,7 @@ def _from_arrays(a: dict[str, np.ndarray]) -> Trajectory:
         objects[name] = ObjectMotion(name, a[f"obj.{i}.position"], a[f"obj.{i}.rotation"], markers)
     mass = float(a["ref.mass"])
     source = str(a["ref.source"])
-    reference = HumanMotion(
+    motion = HumanMotion(
         name=str(a["ref.name"]),
         times=a["ref.times"],
         joint_names=tuple(a["ref.joint_names"].tolist()),
@@ -148,7 +169,11 @@ def _from_arrays(a: dict[str, np.ndarray]) -> Trajectory:
         tcp_rot=a["tcp_rot"],
         targets=HandTargets(a["target_pos"], a["target_rot"]),
         placement=Placement.from_matrix(a["base_pose"]),
-        reference=reference,
+        motion=motion,
+        reference=HumanReference(a["human.q_map"], a["human.psi"], a["human.manip"]),
+        diagnostics=Diagnostics(
+            a["diag.iterations"], a["diag.converged"], a["diag.failed"], a["diag.solve_time"]
+        ),
     )
 
 
@@ -160,7 +185,12 @@ def _check(path: Path, t: Trajectory) -> None:
         "tcp_rot": (t.tcp_rot, (n_t, 2, 3, 3)),
         "target_pos": (t.targets.pos, (n_t, 2, 3)),
         "target_rot": (t.targets.rot, (n_t, 2, 3, 3)),
-        "ref.joints": (t.reference.joints, (n_t, len(t.reference.joint_names))),
+        "ref.joints": (t.motion.joints, (n_t, len(t.motion.joint_names))),
+        "human.q_map": (t.reference.q_map, (n_t, n_q)),
+        "human.psi": (t.reference.psi, (n_t, 2)),
+        "human.manip": (t.reference.manip, (n_t, 2, 3, 3)),
+        **{f"diag.{k}": (getattr(t.diagnostics, k), (n_t,)) for k in ("iterations", "converged", "failed")},
+        "diag.solve_time": (t.diagnostics.solve_time, (n_t,)),
     }
     for key, (array, shape) in shapes.items():
         if array.shape != shape:

@@ -113,8 +113,8 @@ class HJA_r(Criterion):  # noqa: N801 - the paper's name
         self.constant_jacobian = self.band.jacobian(robot.dof)
 
     def residual(self, state, sample):
-        band = JointBand(self.band.idx, sample.q_map[:, self.band.idx], self.band.half, self.band.unlimited)
-        return band.residual(state.q)
+        idx = self.band.idx
+        return joint_difference(state.q[:, idx], sample.q_map[:, idx], self.band.unlimited) / self.band.half
 
 
 class fJLA(Criterion):  # noqa: N801

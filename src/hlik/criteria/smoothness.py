@@ -30,13 +30,19 @@ def history(q: np.ndarray) -> np.ndarray:
 
 def backward_difference(q: np.ndarray, previous: np.ndarray, stencil: np.ndarray, unlimited: np.ndarray):
     """(F, n) ``stencil . (q_t, q_t-1, q_t-2, q_t-3)`` from q (F, n) and ``previous`` (F, 3, n),
-    with consecutive differences wrapped where ``unlimited`` (n,)."""
-    seq = np.concatenate([q[:, None], previous], axis=1)  # (F, 4, n), newest first
-    steps = seq[:, :-1] - seq[:, 1:]
-    steps = np.where(unlimited, wrap(steps), steps)
+    with consecutive differences wrapped where ``unlimited`` (n,) is True."""
     # a stencil over 4 samples that sums to 0 is a stencil over the 3 steps between them
-    weights = np.cumsum(stencil)[:-1]
-    return np.einsum("k,fkn->fn", weights, steps)
+    w = np.cumsum(stencil)[:-1]
+    out = np.zeros(q.shape)
+    newer = q
+    for k in range(3):
+        if w[k] != 0.0:
+            step = newer - previous[:, k]
+            if unlimited.any():
+                step = np.where(unlimited, wrap(step), step)
+            out += w[k] * step
+        newer = previous[:, k]
+    return out
 
 
 class MJE(Criterion):

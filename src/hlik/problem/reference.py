@@ -2,7 +2,8 @@
 
 HJA^r and SYN^r read the mapped human pose, EEA^r the human's elbow elevation, MAN^r the
 normalised human's manipulability (rotated into the robot base frame through the placement).
-Metrics (:mod:`hlik.metrics`) and the QP (:mod:`hlik.solvers.qp`) both take it from here.
+It is built once per retarget (:class:`~hlik.problem.problem.Problem`) and stored in the
+trajectory, where the metrics and the recording read it.
 """
 
 from __future__ import annotations
@@ -13,7 +14,7 @@ import numpy as np
 
 from hlik.criteria.eea import forward_fill, swivel_angle
 from hlik.criteria.manipulability import human_manipulability
-from hlik.human.kinematics import forward_kinematics
+from hlik.human.kinematics import HumanKinematics, forward_kinematics
 from hlik.human.motion import HumanMotion
 from hlik.problem.placement import Placement
 from hlik.robot.model import Robot, mapped_configuration
@@ -32,9 +33,12 @@ class HumanReference:
     manip: np.ndarray
 
 
-def human_reference(robot: Robot, motion: HumanMotion, placement: Placement) -> HumanReference:
-    """The reference of every frame of ``motion`` for ``robot`` placed at ``placement``."""
-    human = forward_kinematics(motion)
+def human_reference(
+    robot: Robot, motion: HumanMotion, placement: Placement, human: HumanKinematics | None = None
+) -> HumanReference:
+    """The reference of every frame of ``motion`` for ``robot`` placed at ``placement``; ``human``
+    is the motion's forward kinematics, computed here if not given."""
+    human = forward_kinematics(motion) if human is None else human
     rot = placement.rotation
     return HumanReference(
         q_map=mapped_configuration(robot, motion),

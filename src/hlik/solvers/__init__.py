@@ -1,53 +1,51 @@
-"""Retargeting solvers: ``(robot, motion, targets, placement) -> joint angles (T, n)``.
+"""Stage 4, the solvers: a :class:`~hlik.problem.problem.Problem` in, a
+:class:`~hlik.solvers.base.SolverResult` (joint angles and per-frame diagnostics) out.
 
-:func:`hlik.retarget.retarget` wraps any of them into a :class:`hlik.trajectory.Trajectory`.
+- ``jm``: the paper's joint mapping (Table I), clipped to the limits (:mod:`~hlik.solvers.jm`).
+- ``jv``: the paper's Jacobian velocity controller, criteria in the null space (:mod:`~hlik.solvers.jv`).
+- ``qp``: a stack of convex QPs per frame, criteria as least-squares terms (:mod:`~hlik.solvers.qp`).
+- ``slsqp``: the paper's OPT, RelaxedIK groove losses with NLopt's SLSQP (:mod:`~hlik.solvers.slsqp`).
 
-- ``jm``: the paper's joint mapping (Table I), clipped to the limits.
-- ``jv``: the paper's Jacobian velocity controller, criteria in the null space (baseline).
-- ``qp``: a stack of convex QPs per frame, criteria as least-squares tasks (mink + daqp).
-- ``slsqp``: the paper's OPT, RelaxedIK groove losses with NLopt's SLSQP and analytic gradients.
-
-Solvers are imported on demand: the optimising ones need the learned criteria.
+Beside them: :mod:`~hlik.solvers.mink_tasks` (criteria as mink tasks and limits),
+:mod:`~hlik.solvers.mink_ik` (a solver from any mink stack), :mod:`~hlik.solvers.stack_file`
+(``tasks/*.toml``), :mod:`~hlik.solvers.frames` (the frame loop they share).
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from importlib import import_module
+from collections.abc import Callable, Mapping
+from types import MappingProxyType
 
-import numpy as np
+from hlik.solvers import jm, jv, qp, slsqp
+from hlik.solvers.base import Diagnostics, Solver, SolverResult
 
-from hlik.criteria.learned import Learned
-from hlik.human.motion import HumanMotion
-from hlik.problem.placement import Placement
-from hlik.problem.targets import HandTargets
-from hlik.robot.model import Robot
-
-Solver = Callable[[Robot, HumanMotion, HandTargets, Placement], np.ndarray]
-
-SOLVER_NAMES = ("jm", "jv", "qp", "slsqp")
+# name -> factory(settings, learned, progress); a new solver adds one line here.
+SOLVERS: Mapping[str, Callable[..., Solver]] = MappingProxyType(
+    {"jm": jm.jm_solver, "jv": jv.jv_solver, "qp": qp.qp_solver, "slsqp": slsqp.slsqp_solver}
+)
+SOLVER_NAMES = tuple(SOLVERS)
 
 
 def get_solver(
     name: str,
     settings: object | None = None,
-    learned: Learned | None = None,
+    learned: object | None = None,
     progress: Callable[[int], None] | None = None,
 ) -> Solver:
-    """The solver called ``name``, with ``settings`` (its settings class; default: the defaults).
+    """The solver called ``name`` with ``settings`` (its settings class; default: the defaults).
 
     ``learned`` supplies the learned criteria (learned on demand otherwise); ``progress(k)`` is
     called after each frame ``k``.
-    """
-    if name == "jm":
-        from hlik.solvers.jm import joint_mapping
 
-        return joint_mapping
-    if name not in SOLVER_NAMES:
-        raise KeyError(name)
-    factory = getattr(import_module(f"hlik.solvers.{name}"), f"{name}_solver")
+    Raises:
+        KeyError: unknown name.
+    """
+    factory = SOLVERS[name]
     return (
         factory(settings, learned, progress)
         if settings is not None
         else factory(learned=learned, progress=progress)
     )
+
+
+__all__ = ["SOLVERS", "SOLVER_NAMES", "Diagnostics", "Solver", "SolverResult", "get_solver"]

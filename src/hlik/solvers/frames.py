@@ -1,24 +1,37 @@
-"""The frame loop the optimising solvers share: warm start, the previous solutions, progress.
+"""The frame loop the optimising solvers share: warm start, the previous solutions, diagnostics.
 
 Every frame is solved from the previous frame's solution (the first from the clipped mapped human
-pose, as JM gives it), with the frame's targets and human reference in a
-:class:`hlik.criteria.base.Sample` of one row.
+pose, as JM gives it), with the frame's targets and human reference in a one-row
+:class:`hlik.criteria.base.Sample`.
 """
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 
 from hlik.criteria.base import Sample
-from hlik.human.motion import HumanMotion
-from hlik.problem.placement import Placement
-from hlik.problem.reference import HumanReference, human_reference
+from hlik.problem.problem import Problem
+from hlik.problem.reference import HumanReference
 from hlik.problem.targets import HandTargets
 from hlik.robot.model import Robot
+from hlik.solvers.base import Diagnostics, SolverResult
 
-FrameSolver = Callable[[int, Sample, np.ndarray], np.ndarray]
+
+@dataclass(frozen=True)
+class FrameResult:
+    """One frame's solution (n,) and how it was reached."""
+
+    q: np.ndarray
+    iterations: int
+    converged: bool = True
+    failed: bool = False
+
+
+FrameSolver = Callable[[int, Sample, np.ndarray], FrameResult]
 
 
 def sample_at(ref: HumanReference, targets: HandTargets, k: int, history: np.ndarray, dt: float) -> Sample:
@@ -28,53 +41,41 @@ def sample_at(ref: HumanReference, targets: HandTargets, k: int, history: np.nda
 
 
 def track(
-    robot: Robot,
-    motion: HumanMotion,
-    targets: HandTargets,
-    placement: Placement,
-    solve_frame: FrameSolver,
-    progress: Callable[[int], None] | None = None,
-) -> np.ndarray:
-    """Solve frame by frame with ``solve_frame(k, frame, q_previous) -> q``.
-
-    Returns:
-        (T, n) joint angles.
-    """
-    ref = human_reference(robot, motion, placement)
-    dt = float(np.median(np.diff(motion.times))) if motion.n_frames > 1 else 0.01
-    q = np.clip(ref.q_map[0], robot.lower, robot.upper)
+    problem: Problem, solve_frame: FrameSolver, progress: Callable[[int], None] | None = None
+) -> SolverResult:
+    """Solve frame by frame with ``solve_frame(k, sample, q_previous) -> FrameResult``."""
+    robot, n_frames = problem.robot, problem.n_frames
+    q = np.clip(problem.reference.q_map[0], robot.lower, robot.upper)
     history = np.tile(q, (3, 1))
-    out = np.empty((motion.n_frames, robot.dof))
-    for k in range(motion.n_frames):
-        q = solve_frame(k, sample_at(ref, targets, k, history, dt), q)
+    out = np.empty((n_frames, robot.dof))
+    iterations = np.zeros(n_frames, dtype=int)
+    converged, failed = np.ones(n_frames, dtype=bool), np.zeros(n_frames, dtype=bool)
+    seconds = np.zeros(n_frames)
+    for k in range(n_frames):
+        start = time.perf_counter()
+        sample = sample_at(problem.reference, problem.targets, k, history, problem.dt)
+        result = solve_frame(k, sample, q)
+        seconds[k] = time.perf_counter() - start
+        q = result.q
+        iterations[k], converged[k], failed[k] = result.iterations, result.converged, result.failed
         # RelaxedIK resets the history to the first solution
         history = np.tile(q, (3, 1)) if k == 0 else np.vstack([q, history[:2]])
         out[k] = q
         if progress is not None:
             progress(k)
-    return out
+    return SolverResult(out, Diagnostics(iterations, converged, failed, seconds))
 
 
 def iterate(
     step: Callable[[np.ndarray], np.ndarray], q: np.ndarray, robot: Robot, max_iter: int, tol: float
-) -> tuple[np.ndarray, int]:
-    """Repeat ``q <- clip(q + step(q))`` until no joint moves more than ``tol`` or ``max_iter`` steps
-    (the paper's stopping rule for JV). Returns the configuration and the steps taken."""
-    steps = 0
+) -> FrameResult:
+    """Repeat ``q <- clip(q + step(q))`` until no joint moves more than ``tol`` (converged) or
+    ``max_iter`` steps (the paper's stopping rule for JV)."""
+    steps, converged = 0, False
     while steps < max_iter:
         new = np.clip(q + step(q), robot.lower, robot.upper)
         moved, q, steps = np.max(np.abs(new - q)), new, steps + 1
         if moved < tol:
+            converged = True
             break
-    return q, steps
-
-
-def as_solver(name: str, solve: Callable, settings, learned, progress) -> Callable:
-    """``solve(robot, motion, targets, placement, settings, learned, progress)[0]`` as a solver
-    for :func:`hlik.retarget.retarget`, named ``name``."""
-
-    def solver(robot: Robot, motion: HumanMotion, targets: HandTargets, placement: Placement) -> np.ndarray:
-        return solve(robot, motion, targets, placement, settings, learned, progress)[0]
-
-    solver.__name__ = solver.__qualname__ = name
-    return solver
+    return FrameResult(q, steps, converged)

@@ -25,12 +25,11 @@ from hlik.criteria import registry, unified
 from hlik.criteria.base import Sample, Term
 from hlik.criteria.functional import fORI, fORI_off, target_terms
 from hlik.criteria.learned import Learned, learn
-from hlik.human.motion import HumanMotion
-from hlik.problem.placement import Placement
-from hlik.problem.targets import HandTargets
+from hlik.problem.problem import Problem
 from hlik.robot.model import Robot
 from hlik.robot.state import RobotState, robot_state
-from hlik.solvers.frames import as_solver, iterate, track
+from hlik.solvers.base import ConfiguredSolver, SolverResult
+from hlik.solvers.frames import FrameResult, iterate, track
 
 
 @dataclass(frozen=True)
@@ -226,28 +225,21 @@ def step(
 
 
 def solve(
-    robot: Robot,
-    motion: HumanMotion,
-    targets: HandTargets,
-    placement: Placement,
+    problem: Problem,
     settings: JVSettings = JVSettings(),
     learned: Learned | None = None,
     progress: Callable[[int], None] | None = None,
-) -> tuple[np.ndarray, np.ndarray]:
-    """Retarget frame by frame.
-
-    Returns:
-        (T, n) joint angles and (T,) number of steps taken per frame.
-    """
+) -> SolverResult:
+    """Retarget frame by frame; diagnostics count the JV steps per frame."""
+    robot = problem.robot
     if settings.criteria and learned is None:
         learned = learn(robot)
     tasks, first = list(target_terms(settings.scenario)), list(target_terms("pose"))
     criteria = criterion_terms(robot, settings, learned)
-    steps = np.zeros(motion.n_frames, dtype=int)
     data = mujoco.MjData(robot.model)
-    memory = None
+    memory: Memory | None = None
 
-    def solve_frame(k: int, frame: Sample, q: np.ndarray) -> np.ndarray:
+    def solve_frame(k: int, frame: Sample, q: np.ndarray) -> FrameResult:
         nonlocal memory
         if memory is None:
             memory = Memory(
@@ -257,19 +249,19 @@ def solve(
 
         def jv_step(x: np.ndarray) -> np.ndarray:
             nonlocal memory
+            assert memory is not None
             dq, memory = step(robot, first if k == 0 else tasks, criteria, x, frame, settings, memory, data)
             return dq
 
-        q, steps[k] = iterate(jv_step, q, robot, settings.max_iter * (10 if k == 0 else 1), settings.tol)
-        return q
+        return iterate(jv_step, q, robot, settings.max_iter * (10 if k == 0 else 1), settings.tol)
 
-    return track(robot, motion, targets, placement, solve_frame, progress), steps
+    return track(problem, solve_frame, progress)
 
 
 def jv_solver(
     settings: JVSettings = JVSettings(),
     learned: Learned | None = None,
     progress: Callable[[int], None] | None = None,
-):
-    """A solver for :func:`hlik.retarget.retarget` with the given settings."""
-    return as_solver("jv", solve, settings, learned, progress)
+) -> ConfiguredSolver:
+    """The JV solver with the given settings, for :func:`hlik.retarget.retarget`."""
+    return ConfiguredSolver("jv", solve, settings, learned, progress)

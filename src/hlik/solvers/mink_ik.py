@@ -14,11 +14,10 @@ import mink
 import numpy as np
 
 from hlik.criteria.base import Sample
-from hlik.human.motion import HumanMotion
-from hlik.problem.placement import Placement
-from hlik.problem.targets import HandTargets
-from hlik.robot.model import SIDES, Robot
-from hlik.solvers.frames import track
+from hlik.problem.problem import Problem
+from hlik.robot.model import SIDES
+from hlik.solvers.base import SolverResult
+from hlik.solvers.frames import FrameResult, track
 from hlik.solvers.mink_tasks import CriterionTask
 
 
@@ -33,7 +32,7 @@ class MinkSolver:
         solver: qpsolvers backend.
     """
 
-    __name__ = "mink"
+    name = "mink"
 
     def __init__(
         self,
@@ -46,14 +45,12 @@ class MinkSolver:
         self.tasks, self.limits = list(tasks), list(limits)
         self.iterations, self.damping, self.solver = iterations, damping, solver
 
-    def __call__(
-        self, robot: Robot, motion: HumanMotion, targets: HandTargets, placement: Placement
-    ) -> np.ndarray:
-        """(T, n) joint angles."""
-        config = mink.Configuration(robot.model)
+    def __call__(self, problem: Problem) -> SolverResult:
+        """Joint angles (T, n); each frame runs a fixed number of ``solve_ik`` steps."""
+        config = mink.Configuration(problem.robot.model)
         hands = {f"{side}_tcp": i for i, side in enumerate(SIDES)}
 
-        def solve_frame(k: int, sample: Sample, q: np.ndarray) -> np.ndarray:
+        def solve_frame(k: int, sample: Sample, q: np.ndarray) -> FrameResult:
             config.update(q)
             for task in self.tasks:
                 if isinstance(task, mink.FrameTask) and task.frame_name in hands:
@@ -62,11 +59,12 @@ class MinkSolver:
                     task.set_target(mink.SE3.from_rotation_and_translation(rot, sample.target_pos[0, i]))
                 elif isinstance(task, CriterionTask):
                     task.set_sample(sample)
-            for _ in range(self.iterations * (10 if k == 0 else 1)):
+            steps = self.iterations * (10 if k == 0 else 1)
+            for _ in range(steps):
                 v = mink.solve_ik(
                     config, self.tasks, sample.dt, self.solver, self.damping, limits=self.limits
                 )
                 config.integrate_inplace(v, sample.dt)
-            return config.q.copy()
+            return FrameResult(config.q.copy(), steps)
 
-        return track(robot, motion, targets, placement, solve_frame)
+        return track(problem, solve_frame)

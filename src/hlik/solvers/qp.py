@@ -23,12 +23,11 @@ from hlik.criteria.base import Sample, Term
 from hlik.criteria.functional import target_terms
 from hlik.criteria.learned import Learned, learn
 from hlik.criteria.smoothness import smoothness_terms
-from hlik.human.motion import HumanMotion
-from hlik.problem.placement import Placement
-from hlik.problem.targets import HandTargets
+from hlik.problem.problem import Problem
 from hlik.robot.model import Robot
 from hlik.robot.state import robot_state
-from hlik.solvers.frames import as_solver, iterate, track
+from hlik.solvers.base import ConfiguredSolver, SolverResult
+from hlik.solvers.frames import FrameResult, iterate, track
 
 
 @dataclass(frozen=True)
@@ -160,41 +159,33 @@ def _solve(hessian, gradient, lb, ub, solver: str) -> np.ndarray | None:
 
 
 def solve(
-    robot: Robot,
-    motion: HumanMotion,
-    targets: HandTargets,
-    placement: Placement,
+    problem: Problem,
     settings: QPSettings = QPSettings(),
     learned: Learned | None = None,
     progress: Callable[[int], None] | None = None,
-) -> tuple[np.ndarray, np.ndarray]:
-    """Retarget frame by frame.
-
-    Returns:
-        (T, n) joint angles and (T,) number of QP steps taken per frame.
-    """
+) -> SolverResult:
+    """Retarget frame by frame; diagnostics count the QP steps per frame."""
+    robot = problem.robot
     if settings.criteria and learned is None:
         learned = learn(robot)
     terms = Assembly(build_terms(robot, settings, learned), robot.dof, settings.damping)
     first = Assembly(build_terms(robot, settings, learned, scenario="pose"), robot.dof, settings.damping)
-    steps = np.zeros(motion.n_frames, dtype=int)
     data = mujoco.MjData(robot.model)
 
-    def solve_frame(k: int, frame: Sample, q: np.ndarray) -> np.ndarray:
+    def solve_frame(k: int, frame: Sample, q: np.ndarray) -> FrameResult:
         stack = first if k == 0 else terms
         max_iter = settings.max_iter * (10 if k == 0 else 1)
-        q, steps[k] = iterate(
+        return iterate(
             lambda x: step(robot, stack, x, frame, settings, data), q, robot, max_iter, settings.tol
         )
-        return q
 
-    return track(robot, motion, targets, placement, solve_frame, progress), steps
+    return track(problem, solve_frame, progress)
 
 
 def qp_solver(
     settings: QPSettings = QPSettings(),
     learned: Learned | None = None,
     progress: Callable[[int], None] | None = None,
-):
-    """A solver for :func:`hlik.retarget.retarget` with the given settings."""
-    return as_solver("qp", solve, settings, learned, progress)
+) -> ConfiguredSolver:
+    """The QP solver with the given settings, for :func:`hlik.retarget.retarget`."""
+    return ConfiguredSolver("qp", solve, settings, learned, progress)

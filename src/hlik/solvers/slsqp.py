@@ -26,12 +26,11 @@ from hlik.criteria.base import Sample, Term
 from hlik.criteria.functional import fORI, fORI_off, fPOS, fPOS_off
 from hlik.criteria.learned import Learned, learn
 from hlik.criteria.smoothness import ACCELERATION, JERK, VELOCITY, Smoothness
-from hlik.human.motion import HumanMotion
-from hlik.problem.placement import Placement
-from hlik.problem.targets import HandTargets
+from hlik.problem.problem import Problem
 from hlik.robot.model import Robot
 from hlik.robot.state import robot_state
-from hlik.solvers.frames import as_solver, track
+from hlik.solvers.base import ConfiguredSolver, SolverResult
+from hlik.solvers.frames import FrameResult, track
 
 # Sec. IV-A's gamma_p = 10 for the TCP position. The relative position (m, like fPOS) gets it too:
 # with 1 the groove's well (c = 0.1) is 10 cm wide and SLSQP leaves fPOS^off at 10-50 cm on the
@@ -262,22 +261,6 @@ def _sites(groups) -> tuple[int, ...]:
     return tuple(sorted({i for group in groups for i in group}))
 
 
-@dataclass(frozen=True, eq=False)
-class SLSQPInfo:
-    """What happened per frame.
-
-    Attributes:
-        evaluations: (T,) objective evaluations NLopt made (``fd``: each costs n + 1 FK passes).
-        status: (T,) NLopt's result code (negative: failure, e.g. ``nlopt.ROUNDOFF_LIMITED``).
-        failed: Frames where NLopt failed or returned a non-finite result; they hold the best finite
-            configuration evaluated in that frame, else the previous frame's solution.
-    """
-
-    evaluations: np.ndarray
-    status: np.ndarray
-    failed: tuple[int, ...]
-
-
 def make_optimizer(robot: Robot, settings: SLSQPSettings) -> nlopt.opt:
     """NLopt's SLSQP over ``robot``'s joints; unlimited joints keep their infinite bounds."""
     opt = nlopt.opt(nlopt.LD_SLSQP, robot.dof)
@@ -312,19 +295,19 @@ def solve_frame(
 
 
 def solve(
-    robot: Robot,
-    motion: HumanMotion,
-    targets: HandTargets,
-    placement: Placement,
+    problem: Problem,
     settings: SLSQPSettings = SLSQPSettings(),
     learned: Learned | None = None,
     progress: Callable[[int], None] | None = None,
-) -> tuple[np.ndarray, SLSQPInfo]:
+) -> SolverResult:
     """Retarget frame by frame.
 
-    Returns:
-        (T, n) joint angles and the per-frame :class:`SLSQPInfo`.
+    Diagnostics: ``iterations`` counts NLopt's objective evaluations (``fd``: each costs n + 1 FK
+    passes), a frame has converged when NLopt stopped by its tolerance (not ``MAXEVAL_REACHED``) and
+    failed when NLopt failed or returned a non-finite result; ``info["status"]`` (T,) holds NLopt's
+    result codes.
     """
+    robot = problem.robot
     if settings.criteria and learned is None:
         learned = learn(robot)
     gradients = dict(gradients=settings.gradients, fd_step=settings.fd_step)
@@ -333,23 +316,22 @@ def solve(
     if settings.scenario == "relative":
         first = Objective(robot, build_losses(robot, settings, learned, first=True), **gradients)
     opt = make_optimizer(robot, settings)
-    evaluations = np.zeros(motion.n_frames, dtype=int)
-    status = np.zeros(motion.n_frames, dtype=int)
+    status = np.zeros(problem.n_frames, dtype=int)
 
-    def solve_frame_k(k: int, frame: Sample, q: np.ndarray) -> np.ndarray:
+    def solve_frame_k(k: int, frame: Sample, q: np.ndarray) -> FrameResult:
         obj, max_eval = (first, settings.first_eval) if k == 0 else (objective, settings.max_eval)
         q, status[k] = solve_frame(opt, obj, frame, q, max_eval)
-        evaluations[k] = obj.evaluations
-        return np.clip(q, robot.lower, robot.upper)
+        converged = status[k] > 0 and status[k] != nlopt.MAXEVAL_REACHED
+        return FrameResult(np.clip(q, robot.lower, robot.upper), obj.evaluations, converged, status[k] < 0)
 
-    out = track(robot, motion, targets, placement, solve_frame_k, progress)
-    return out, SLSQPInfo(evaluations, status, tuple(int(k) for k in np.flatnonzero(status < 0)))
+    result = track(problem, solve_frame_k, progress)
+    return replace(result, info=MappingProxyType({"status": status}))
 
 
 def slsqp_solver(
     settings: SLSQPSettings = SLSQPSettings(),
     learned: Learned | None = None,
     progress: Callable[[int], None] | None = None,
-):
-    """A solver for :func:`hlik.retarget.retarget` with the given settings."""
-    return as_solver("slsqp", solve, settings, learned, progress)
+) -> ConfiguredSolver:
+    """The SLSQP solver (the paper's OPT) with the given settings, for :func:`hlik.retarget.retarget`."""
+    return ConfiguredSolver("slsqp", solve, settings, learned, progress)

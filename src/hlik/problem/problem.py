@@ -1,0 +1,58 @@
+"""The retargeting problem: one motion on one robot, everything a solver needs, built once."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from hlik.human.kinematics import HumanKinematics, forward_kinematics
+from hlik.human.motion import HumanMotion
+from hlik.problem.placement import Placement, shoulder_placement
+from hlik.problem.reference import HumanReference, human_reference
+from hlik.problem.targets import HandTargets, hand_targets
+from hlik.robot.model import Robot
+
+
+@dataclass(frozen=True, eq=False)
+class Problem:
+    """Retargeting ``motion`` to ``robot``; arrays over the T frames of the motion.
+
+    Attributes:
+        robot: The robot.
+        motion: The human motion (MMM joint angles, root, objects).
+        human: Its forward kinematics on the MMM model, world frame.
+        placement: Pose of the robot base in the human's world.
+        targets: The human hand poses as TCP targets, robot base frame.
+        reference: The human reference of the reference criteria (mapped pose, Ψ, manipulability).
+        dt: Median frame period, s.
+    """
+
+    robot: Robot
+    motion: HumanMotion
+    human: HumanKinematics
+    placement: Placement
+    targets: HandTargets
+    reference: HumanReference
+    dt: float
+
+    @property
+    def n_frames(self) -> int:
+        return self.motion.n_frames
+
+
+def build_problem(motion: HumanMotion, robot: Robot, placement: Placement | None = None) -> Problem:
+    """The problem of ``motion`` on ``robot``, placed at ``placement`` (default: shoulders aligned,
+    :func:`~hlik.problem.placement.shoulder_placement`)."""
+    human = forward_kinematics(motion)
+    placement = placement or shoulder_placement(robot, human)
+    dt = float(np.median(np.diff(motion.times))) if motion.n_frames > 1 else 0.01
+    return Problem(
+        robot=robot,
+        motion=motion,
+        human=human,
+        placement=placement,
+        targets=hand_targets(human, placement),
+        reference=human_reference(robot, motion, placement, human),
+        dt=dt,
+    )
