@@ -72,3 +72,18 @@ def solve_problem(solve, robot, motion, targets, placement, settings=None, **kwa
     problem = replace(build_problem(motion, robot, placement), targets=targets)
     result = solve(problem, settings, **kwargs) if settings is not None else solve(problem, **kwargs)
     return result.q, result
+
+
+@pytest.fixture(params=__import__("hlik.robot.model", fromlist=["available_robots"]).available_robots())
+def robot(request):
+    """Each bundled robot in turn."""
+    from hlik.robot.model import load_robot
+
+    return load_robot(request.param)
+
+
+def central_differences(fun, q: np.ndarray, eps: float = 1e-6):
+    """d fun / dq by central differences: fun(q) (..., m) at q (n,) -> (..., m, n)."""
+    import numpy as np
+
+    return np.stack([(fun(q + d) - fun(q - d)) / (2 * eps) for d in eps * np.eye(len(q))], axis=-1)

@@ -126,6 +126,15 @@ class Criterion(Term):
     x0: ClassVar[float] = 1.0
     weight: ClassVar[float] = 0.0
     functional: ClassVar[bool] = False
+    # False where the Jacobian holds a configuration-dependent prediction fixed (a Gauss-Newton
+    # step, not d residual / dq): EEA's Psi_human, Soechting's arm, fORI's first-order rotation.
+    exact_jacobian: ClassVar[bool] = True
+    # Set where exact_jacobian is False and a solver needs dh/dq: SLSQP then differentiates h
+    # numerically and caps the gradient's norm at this value.
+    numeric_gradient_cap: ClassVar[float | None] = None
+    # Set where the solvers minimise another form than h (a smooth stand-in); it says which. They
+    # still report h.
+    solver_form: ClassVar[str | None] = None
 
     def __init__(self, robot: object = None, learned: object = None):
         """Criteria that need neither the robot nor the learned pieces take them and ignore them."""

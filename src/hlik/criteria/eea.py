@@ -299,6 +299,9 @@ class EEA(Criterion):
     """
 
     name, gamma, x0, weight = "EEA", 4.0, 0.3, 1 / 20
+    # the prediction is held fixed; SLSQP's cap mirrors the Jacobian's on dPsi/dq (20 rad/rad, over pi;
+    # the paper caps the elevation gradients, Sec. IV-A)
+    exact_jacobian, numeric_gradient_cap = False, 20.0 / np.pi
     needs_sample = False
 
     def __init__(self, robot: object, learned: Learned):

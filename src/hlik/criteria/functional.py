@@ -113,6 +113,7 @@ class fORI(Criterion):  # noqa: N801
 
     name, functional = "fORI", True
     sites = (3,)
+    exact_jacobian = False  # first order: exact at the target
 
     def residual(self, state, sample):
         err = rotation_vector(state.tcp_rot @ np.swapaxes(sample.target_rot, -1, -2))
@@ -155,6 +156,7 @@ class fORI_off(Criterion):  # noqa: N801
 
     name, functional = "fORI_off", True
     sites = (3,)
+    exact_jacobian = False
 
     def residual(self, state, sample):
         _, rel_rot = relative_target(sample)

@@ -160,6 +160,7 @@ class SOA_x(Criterion):  # noqa: N801 - the paper's name
     """SOA_x: elbow to its Soechting prediction from the wrist, per upper-arm length (e (F, 6))."""
 
     name, gamma, x0, weight = "SOA_x", 10.0, 0.2, 1 / 20
+    exact_jacobian, numeric_gradient_cap = False, np.inf  # the prediction is held fixed
     needs_sample = False
 
     def __init__(self, robot: Robot, learned: object = None):
@@ -183,6 +184,7 @@ class SOA_q(Criterion):  # noqa: N801
     """SOA_q: the mapped joints to the predicted shoulder and elbow angles (e (F, k), rad)."""
 
     name, gamma, x0, weight = "SOA_q", 2.0, 0.34, 1 / 20
+    exact_jacobian, numeric_gradient_cap = False, np.inf  # the prediction is held fixed
     needs_sample = False
 
     def __init__(self, robot: Robot, learned: object = None):

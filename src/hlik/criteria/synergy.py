@@ -145,6 +145,7 @@ class MIS(Criterion):
 
     name, gamma, x0, weight = "MIS", 1.0, 0.49, 1 / 5
     sites = ()
+    solver_form = "velocity penalty ||(I - U^T U) e||^2 (formulas.md §9)"
 
     def __init__(self, robot: Robot, learned: Learned):
         syn = learned.synergies

@@ -1,12 +1,12 @@
 """SLSQP retargeting: the paper's OPT, RelaxedIK groove losses minimised per frame with NLopt.
 
 Per frame, SLSQP minimises ``sum_i w_i l(gamma_i h_i(q))`` over the joint angles q within the joint
-limits, where each h_i is the scalar cost of a term (:mod:`hlik.terms`): the TCP pose or relative
+limits, where each h_i is the scalar cost of a term (:mod:`hlik.criteria`): the TCP pose or relative
 pose errors, RelaxedIK's minimum velocity, acceleration and jerk toward the previous solutions, and
 the chosen human-likeness criteria; l is the groove loss. One forward-kinematics pass per evaluation
 gives every h_i and, with ``gradients="analytic"``, its exact gradient from the term Jacobians (the
-few criteria whose Jacobian is not dh/dq are differentiated numerically, :data:`NUMERIC_GRADIENT`);
-``gradients="fd"`` uses forward differences of the objective instead, as the paper and RelaxedIK do.
+few criteria whose Jacobian is not dh/dq are differentiated numerically, capped at their
+``numeric_gradient_cap``); ``gradients="fd"`` uses forward differences of the objective instead, as the paper and RelaxedIK do.
 Frames are warm-started from the previous solution; a frame where NLopt fails keeps the best finite
 configuration it evaluated (or the previous solution) and is reported.
 """
@@ -36,14 +36,6 @@ from hlik.solvers.frames import FrameResult, track
 # with 1 the groove's well (c = 0.1) is 10 cm wide and SLSQP leaves fPOS^off at 10-50 cm on the
 # demo; with 10 it is a few mm (Sec. V-B's x0: 3 cm).
 POSITION_TERMS = ("fPOS", "fPOS_off")
-
-# Criteria whose Jacobian holds a configuration-dependent prediction fixed (Psi_human from the hand
-# pose, Soechting's elbow and joint angles from the wrist): a Gauss-Newton step for the QP, but not
-# dh/dq. Their h is differentiated numerically, with a cap on the gradient's norm: EEA's mirrors the
-# term's cap on dPsi/dq (20 rad/rad, over pi; the paper caps the elevation gradients, Sec. IV-A).
-NUMERIC_GRADIENT: Mapping[str, float] = MappingProxyType(
-    {"EEA": 20.0 / np.pi, "EEA_r": 20.0 / np.pi, "SOA_x": np.inf, "SOA_q": np.inf}
-)
 
 # NLopt exceptions that end one frame, not the run, and the result code each stands for.
 NLOPT_ERRORS: Mapping[type, int] = MappingProxyType(
@@ -183,8 +175,10 @@ class Objective:
     ):
         self.robot, self.losses, self.fd_step = robot, tuple(losses), fd_step
         self.analytic = gradients == "analytic"
-        self.numeric = tuple(i for i, loss in enumerate(self.losses) if loss.term.name in NUMERIC_GRADIENT)
-        self.caps = np.array([NUMERIC_GRADIENT[self.losses[i].term.name] for i in self.numeric])
+        # criteria whose Jacobian holds a prediction fixed: h is differentiated numerically, capped
+        caps = [getattr(loss.term, "numeric_gradient_cap", None) for loss in self.losses]
+        self.numeric = tuple(i for i, cap in enumerate(caps) if cap is not None)
+        self.caps = np.array([caps[i] for i in self.numeric])
         # one FK pass computes only the site Jacobians the terms read (for fd: their values read)
         self.sites = _sites(loss.term.sites for loss in self.losses)
         self.value_sites = _sites(loss.term.value_sites for loss in self.losses)

@@ -1,0 +1,136 @@
+"""The criterion registry: every registered criterion's Jacobian, its cost in evaluate and in the
+solvers, and a new criterion registered from outside running through every solver and evaluate."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from conftest import central_differences
+from hlik.criteria import registry
+from hlik.criteria.base import Criterion
+from hlik.criteria.learned import learn
+from hlik.human.demo import demo_motion
+from hlik.metrics import costs, evaluate
+from hlik.problem.problem import build_problem
+from hlik.retarget import retarget
+from hlik.robot.state import robot_state
+from hlik.solvers import SOLVERS, get_solver
+from hlik.solvers.frames import sample_at
+from hlik.solvers.jv import JVSettings
+from hlik.solvers.qp import QPSettings
+from hlik.solvers.slsqp import SLSQPSettings
+from hlik.solvers.stack_file import load_stack
+
+ALL = registry.human_likeness() + registry.functional()
+
+
+def _sample_and_q(robot, seed):
+    """A frame of the demo on ``robot`` with a random configuration and a moving history."""
+    rng = np.random.default_rng(seed)
+    problem = build_problem(demo_motion().crop(1.0, 1.4), robot)
+    lower, upper = np.maximum(robot.lower, -2.5), np.minimum(robot.upper, 2.5)
+    q = np.clip(robot.home + rng.normal(0, 0.3, robot.dof), lower, upper)
+    history = np.clip(q + rng.normal(0, 0.02, (3, robot.dof)), lower, upper)
+    return sample_at(problem.reference, problem.targets, 3, history, problem.dt), q
+
+
+def test_registry_lists_the_papers_criteria_once():
+    assert registry.human_likeness() == (
+        "EEA", "SOA_x", "SOA_q", "HJL", "SYN", "MIS", "MJE", "HJA_r", "SYN_r", "EEA_r", "MAN_r",
+    )  # fmt: skip
+    assert registry.functional() == ("fJLA", "fPOS", "fORI", "fPOS_off", "fORI_off")
+    assert sum(registry.criterion_class(n).weight for n in registry.human_likeness()) == pytest.approx(1.0)
+    with pytest.raises(KeyError, match="unknown criterion 'NOPE'"):
+        registry.criterion_class("NOPE")
+    with pytest.raises(ValueError, match="registered already"):
+        registry.register(type("Clash", (Criterion,), {"name": "SYN"}))
+
+
+@pytest.mark.parametrize("name", ALL)
+def test_every_exact_jacobian_matches_central_differences(robot, name):
+    crit = registry.criterion(name, robot, learn(robot))
+    sample, q = _sample_and_q(robot, 3)
+    state = robot_state(robot, q, jacobians=True)
+    jac = crit.jacobian(state, sample)[0]
+    e = crit.residual(state, sample)[0]
+    assert np.all(np.isfinite(e)) and np.all(np.isfinite(jac)) and jac.shape == (len(e), robot.dof)
+    if not crit.exact_jacobian:
+        return  # a prediction held fixed (EEA, SOA) or first order (fORI): tested in their own modules
+    fd = central_differences(lambda x: crit.residual(robot_state(robot, x, jacobians=True), sample)[0], q)
+    np.testing.assert_allclose(jac, fd, atol=2e-5 * max(1.0, np.abs(fd).max()))
+    if crit.solver_form is not None:
+        return  # the solvers minimise a stand-in (MIS: a velocity penalty); they report crit.cost
+    h, dh_de = crit.metric(e)  # the solvers' h and dh/de equal the vectorised cost's
+    assert h == pytest.approx(float(crit.cost(e[None])[0]))
+    np.testing.assert_allclose(dh_de, central_differences(lambda x: crit.cost(x[None]), e)[0], atol=1e-5)
+
+
+def test_evaluate_reports_the_cost_the_solvers_compute(robot):
+    """Per frame, evaluate's h equals the criterion's cost on that frame's configuration and sample."""
+    learned = learn(robot)
+    traj = retarget(demo_motion().crop(1.0, 1.3), robot, get_solver("qp", QPSettings(max_iter=3), learned))
+    h = costs(traj, robot, learned)
+    problem = build_problem(traj.motion, robot, traj.placement)
+    for k in (0, 1, 2, 5, traj.n_frames - 1):
+        history = np.stack([traj.q[max(k - i, 0)] for i in (1, 2, 3)])
+        sample = sample_at(problem.reference, problem.targets, k, history, problem.dt)
+        state = robot_state(robot, traj.q[k], jacobians=True)
+        for name in ALL:
+            crit = registry.criterion(name, robot, learned)
+            assert crit.cost(crit.residual(state, sample))[0] == pytest.approx(
+                h[name][k], rel=1e-9, abs=1e-12
+            ), (
+                name,
+                k,
+            )
+
+
+class Toy(Criterion):
+    """A toy criterion registered from outside hlik: the first arm joint toward 0.3 rad."""
+
+    name, gamma, x0, weight = "TOY", 1.0, 0.05, 0.0
+    needs_sample, sites = False, ()
+
+    def __init__(self, robot, learned=None):
+        self.joint = robot.index(robot.arm_joints["left"][0])
+        self.constant_jacobian = np.zeros((1, robot.dof))
+        self.constant_jacobian[0, self.joint] = 1.0
+
+    def residual(self, state, sample):
+        return state.q[:, [self.joint]] - 0.3
+
+
+@pytest.fixture()
+def toy():
+    registry.register(Toy)
+    yield Toy
+    registry.unregister("TOY")
+
+
+def test_a_registered_criterion_runs_through_every_solver_and_evaluate(toy):
+    from hlik.robot.model import load_robot
+
+    r = load_robot("dual_panda")
+    learned = learn(r)
+    motion = demo_motion().crop(1.0, 1.3)
+    stack = load_stack("ee_pose").with_criteria(["TOY"])  # stack files accept it by name
+    settings = {
+        "jv": replace(stack.settings("jv"), max_iter=20),
+        "qp": replace(stack.settings("qp"), criterion_cost=5.0),
+        "slsqp": replace(stack.settings("slsqp"), max_eval=30),
+    }
+    for name in SOLVERS:
+        if name == "jm":
+            continue
+        plain = retarget(motion, r, get_solver(name, replace(settings[name], criteria=()), learned))
+        with_toy = retarget(motion, r, get_solver(name, settings[name], learned))
+        ev, ev0 = evaluate(with_toy, r, learned), evaluate(plain, r, learned)
+        assert "TOY" in ev.m and np.isfinite(ev.h["TOY"]).all(), name
+        assert ev.m_hl == pytest.approx(ev0.m_hl, abs=0.2)  # weight 0: scored, not in m_hl's sum
+        if name == "qp":  # where the null space allows it, the criterion acts
+            assert np.mean(ev.h["TOY"]) < np.mean(ev0.h["TOY"]), name
+    assert isinstance(get_solver("jv", JVSettings(criteria=("TOY",)), learned), object)
+    assert isinstance(SLSQPSettings(criteria=("TOY",)), SLSQPSettings)
