@@ -8,7 +8,10 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+import numpy as np
 import pytest
+
+from hlik.robot.model import available_robots
 
 DATA = Path(os.environ.get("HLIK_DATA", Path(__file__).resolve().parents[2] / "shared" / "motion_data"))
 
@@ -74,7 +77,7 @@ def solve_problem(solve, robot, motion, targets, placement, settings=None, **kwa
     return result.q, result
 
 
-@pytest.fixture(params=__import__("hlik.robot.model", fromlist=["available_robots"]).available_robots())
+@pytest.fixture(params=available_robots())
 def robot(request):
     """Each bundled robot in turn."""
     from hlik.robot.model import load_robot
@@ -82,8 +85,6 @@ def robot(request):
     return load_robot(request.param)
 
 
-def central_differences(fun, q: np.ndarray, eps: float = 1e-6):
+def central_differences(fun, q: np.ndarray, eps: float = 1e-6) -> np.ndarray:
     """d fun / dq by central differences: fun(q) (..., m) at q (n,) -> (..., m, n)."""
-    import numpy as np
-
     return np.stack([(fun(q + d) - fun(q - d)) / (2 * eps) for d in eps * np.eye(len(q))], axis=-1)

@@ -16,6 +16,7 @@ from rich.table import Table
 
 from hlik.errors import HlikError
 from hlik.paths import demo_motion_path
+from hlik.robot.mapping import JointMap
 
 app = typer.Typer(
     help="hlik: human-like bimanual motion retargeting (MMM human -> ARMAR-III, ARMAR-6, 2-Panda).",
@@ -141,7 +142,7 @@ def run(
             step = lambda k: progress.update(task, completed=k + 1)  # noqa: E731
             settings = None if solver == "jm" else task_stack.settings(solver)
             if solver == "slsqp":
-                settings = replace(settings, gradients=gradients)
+                settings = replace(task_stack.settings("slsqp"), gradients=gradients)
             traj = retarget(m, r, get_solver(solver, settings, learned, step))
             progress.update(task, completed=m.n_frames)
             solve_time = time.perf_counter() - start
@@ -357,9 +358,9 @@ def calibrate(
     console.print(table)
     res = ", ".join(f"{s} {np.degrees(v):.1f}°" for s, v in cal.residual.items())
     console.print(f"hand-frame error of the mapped default pose: {res}")
-    offsets = [m for m in cal.mapping.joints if m.offset]
+    offsets = [(m.joint, m.offset) for m in cal.mapping.joints if m.offset is not None]
     if offsets:
-        found = ", ".join(f"{m.joint} {m.offset.gain:+.3f}·{m.offset.mmm}" for m in offsets)
+        found = ", ".join(f"{joint} {off.gain:+.3f}·{off.mmm}" for joint, off in offsets)
         console.print(f"dynamic offsets: {found} (paper, ARMAR-6 Sho2: +{0.55 / np.pi:.3f}·s_x)")
     stored = r.mapping
     same = all(_close(stored.get(m.joint), m) for m in cal.mapping.joints)
@@ -370,15 +371,13 @@ def calibrate(
     )
 
 
-def _close(a, b) -> bool:
-    off_a = (a.offset.mmm, a.offset.gain) if a.offset else None
-    off_b = (b.offset.mmm, b.offset.gain) if b.offset else None
-    return (
-        (a.mmm == b.mmm or a.a == 0 == b.a)
-        and a.a == b.a
-        and abs(a.b - b.b) < 1e-3
-        and (off_a == off_b or (off_a and off_b and off_a[0] == off_b[0] and abs(off_a[1] - off_b[1]) < 1e-3))
-    )
+def _close(a: JointMap, b: JointMap) -> bool:
+    """Same joint mapping up to the printed precision (1e-3 rad, 1e-3 gain)."""
+    if (a.mmm != b.mmm and not a.a == 0 == b.a) or a.a != b.a or abs(a.b - b.b) >= 1e-3:
+        return False
+    if a.offset is None or b.offset is None:
+        return a.offset is None and b.offset is None
+    return a.offset.mmm == b.offset.mmm and abs(a.offset.gain - b.offset.gain) < 1e-3
 
 
 def main() -> None:  # pragma: no cover

@@ -66,7 +66,7 @@ class Trajectory:
         path = Path(path)
         arrays = _to_arrays(self)
         with atomic_path(path) as tmp, open(tmp, "wb") as f:
-            np.savez_compressed(f, **arrays)
+            np.savez_compressed(f, **arrays)  # type: ignore[arg-type]  # numpy's stub types allow_pickle
         return path
 
 

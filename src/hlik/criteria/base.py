@@ -57,8 +57,13 @@ class Sample:
         dt: float,
     ) -> Sample:
         """The one-row sample of a single time: the arrays above without their leading axis."""
-        arrays = (target_pos, target_rot, q_map, psi_mmm, manip, history)
-        return cls(*(np.asarray(a, dtype=float)[None] for a in arrays), dt=float(dt))
+
+        def row(a: np.ndarray) -> np.ndarray:
+            return np.asarray(a, dtype=float)[None]
+
+        return cls(
+            row(target_pos), row(target_rot), row(q_map), row(psi_mmm), row(manip), row(history), float(dt)
+        )
 
 
 class Term:

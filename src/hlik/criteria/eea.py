@@ -27,7 +27,7 @@ is the signed, wrapped version of it (formulas.md §9).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -46,7 +46,7 @@ _MIRROR = np.array([-1.0, 1.0, 1.0])  # x -> -x
 _SIDE_SIGN = np.array([-1.0, 1.0])  # left Ψ = -Ψ_raw, right Ψ = Ψ_raw
 
 # The printed Zanchettin coefficients (RAM 2013, Eq. 3), in the terms they were printed in.
-_PUBLISHED = {
+_PUBLISHED: dict[str, Any] = {
     "const": 1.39,
     "theta": (-0.88, 0.30),  # -0.88 cos(θ + 0.30)
     "theta_phi": (-0.49, 2.98),  # -0.49 cos(θ + φ + 2.98)

@@ -72,9 +72,9 @@ def human_limits(robot: Robot) -> JointBand:
         a, b = sorted((m.a * low + shift, m.a * high + shift))
         lo.append(a)
         hi.append(b)
-    lo, hi = np.array(lo), np.array(hi)
+    low_arr, high_arr = np.array(lo), np.array(hi)
     idx = np.asarray(robot.index([m.joint for m in maps]))
-    return JointBand(idx, (lo + hi) / 2.0, (hi - lo) / 2.0, _unlimited(robot, idx))
+    return JointBand(idx, (low_arr + high_arr) / 2.0, (high_arr - low_arr) / 2.0, _unlimited(robot, idx))
 
 
 def robot_limits(robot: Robot) -> JointBand:

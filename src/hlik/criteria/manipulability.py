@@ -121,6 +121,7 @@ def manipulability_derivative(robot: Robot, state: RobotState) -> np.ndarray:
     after = np.cross(w[..., None, :, :], v[..., :, None, :])  # w_i x v_j
     proximal = np.arange(k)[:, None] < np.arange(k)[None, :]  # j < i
     d_arm = np.where(proximal[..., None], before, after)  # (F, 2, k, k, 3)
+    assert state.jac is not None  # checked by _arm_jacobian
     w_all = np.swapaxes(state.jac[:, :, SITE, 3:, :], -1, -2)  # (F, 2, n, 3)
     d_jac = np.cross(w_all[..., :, None, :], v[..., None, :, :])  # (F, 2, n, k, 3) non-chain rule
     for i, cols in enumerate(robot.manipulability_chain):

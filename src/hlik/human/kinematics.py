@@ -6,6 +6,7 @@ The model file is normalised to a 1 m tall subject; :func:`human_model` scales e
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import mujoco
@@ -35,8 +36,12 @@ class HumanKinematics:
     tcp_rot: np.ndarray
 
 
+@functools.lru_cache(maxsize=16)
 def human_model(height: float) -> mujoco.MjModel:
-    """The MMM model scaled to a subject of ``height`` metres."""
+    """The MMM model scaled to a subject of ``height`` metres, compiled once per height.
+
+    The model is shared: read it, make an ``MjData`` of it, never modify it.
+    """
     spec = mujoco.MjSpec.from_file(str(robots_dir() / "mjcf" / "mmm.xml"))
     for body in spec.bodies:
         body.pos = np.asarray(body.pos) * height

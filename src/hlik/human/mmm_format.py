@@ -226,16 +226,18 @@ def _read_measurements(path: Path, sensor: Element, tag: str, n: int):
 
 
 def _read_markers(path: Path, sensor: Element, times: np.ndarray) -> dict[str, np.ndarray]:
-    t, names, rows = [], None, []
+    t: list[float] = []
+    names: list[str] | None = None
+    rows: list[list[np.ndarray]] = []
     for k, meas in enumerate(sensor.findall("Data/Measurement")):
         t.append(_floats(path, meas.get("timestep"), 1, f"marker measurement {k}: timestep")[0])
         entries = meas.findall("MarkerPosition")
-        frame = {e.get("name"): _floats(path, e.text, 3, f"marker {e.get('name')}") for e in entries}
+        frame = {str(e.get("name")): _floats(path, e.text, 3, f"marker {e.get('name')}") for e in entries}
         names = list(frame) if names is None else names
         if list(frame) != names:
             raise MotionFormatError(path, f"t={t[-1]:g}: marker set differs from the first frame")
         rows.append([frame[n] for n in names])
-    if not rows:
+    if not rows or names is None:
         return {}
     ta = _check_times(path, np.asarray(t), "MoCapMarker sensor")
     data = _align(ta, np.asarray(rows).reshape(len(rows), -1) * MM, times)

@@ -67,14 +67,16 @@ def robot_state(
     flat = ids.ravel()
     sites = np.empty((len(q), 2, len(SITES), 3))
     rot = np.empty((len(q), 2, 3, 3))
-    jac = (np.empty if len(jacobian_sites) == len(SITES) else np.zeros)((len(q), 2, len(SITES), 6, model.nv))
-    jac = jac if jacobians else None
+    jac = None
+    if jacobians:
+        shape = (len(q), 2, len(SITES), 6, model.nv)
+        jac = np.empty(shape) if len(jacobian_sites) == len(SITES) else np.zeros(shape)
     for k, qk in enumerate(q):
         data.qpos[:] = qk
         mujoco.mj_kinematics(model, data)
         sites[k] = data.site_xpos[flat].reshape(2, len(SITES), 3)
         rot[k] = data.site_xmat[ids[:, 3]].reshape(2, 3, 3)
-        if jacobians:
+        if jac is not None:
             mujoco.mj_comPos(model, data)
             for i, side_ids in enumerate(ids):
                 for j in jacobian_sites:

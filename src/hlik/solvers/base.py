@@ -63,7 +63,8 @@ class SolverResult:
 class Solver(Protocol):
     """Anything with a ``name`` that turns a problem into a :class:`SolverResult`."""
 
-    name: str
+    @property
+    def name(self) -> str: ...
 
     def __call__(self, problem: Problem) -> SolverResult: ...
 

@@ -165,7 +165,7 @@ def bound(v: np.ndarray, limit: float) -> np.ndarray:
 
 def criterion_terms(robot: Robot, settings: JVSettings, learned: Learned | None) -> list[Term]:
     """The criteria of ``settings``, each with its null-space weight w_i as ``cost``."""
-    terms = []
+    terms: list[Term] = []
     for name in settings.criteria:
         term = registry.criterion(name, robot, learned)
         term.cost_weight = settings.weight * unified.gamma(name, settings.gamma) / len(settings.criteria)

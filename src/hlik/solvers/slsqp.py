@@ -6,7 +6,8 @@ pose errors, RelaxedIK's minimum velocity, acceleration and jerk toward the prev
 the chosen human-likeness criteria; l is the groove loss. One forward-kinematics pass per evaluation
 gives every h_i and, with ``gradients="analytic"``, its exact gradient from the term Jacobians (the
 few criteria whose Jacobian is not dh/dq are differentiated numerically, capped at their
-``numeric_gradient_cap``); ``gradients="fd"`` uses forward differences of the objective instead, as the paper and RelaxedIK do.
+``numeric_gradient_cap``); ``gradients="fd"`` uses forward differences of the objective instead, as
+the paper and RelaxedIK do.
 Frames are warm-started from the previous solution; a frame where NLopt fails keeps the best finite
 configuration it evaluated (or the previous solution) and is reported.
 """
@@ -38,7 +39,7 @@ from hlik.solvers.frames import FrameResult, track
 POSITION_TERMS = ("fPOS", "fPOS_off")
 
 # NLopt exceptions that end one frame, not the run, and the result code each stands for.
-NLOPT_ERRORS: Mapping[type, int] = MappingProxyType(
+NLOPT_ERRORS: Mapping[type[Exception], int] = MappingProxyType(
     {
         nlopt.RoundoffLimited: nlopt.ROUNDOFF_LIMITED,
         nlopt.ForcedStop: nlopt.FORCED_STOP,
@@ -190,13 +191,20 @@ class Objective:
     def reset(self, frame: Sample | None = None) -> None:
         """Start a frame: forget the best configuration and the evaluation count."""
         self.frame = frame
-        self.best, self.best_value, self.evaluations = None, np.inf, 0
+        self.best: np.ndarray | None = None
+        self.best_value, self.evaluations = np.inf, 0
+
+    @property
+    def sample(self) -> Sample:
+        if self.frame is None:
+            raise RuntimeError("Objective.reset(sample) must be called before evaluating")
+        return self.frame
 
     def costs(self, q: np.ndarray, which: Sequence[int] | None = None) -> np.ndarray:
         """The costs h_i at ``q`` (n,) of the losses ``which`` (all by default), no Jacobians needed."""
         losses = self.losses if which is None else [self.losses[i] for i in which]
         state = robot_state(self.robot, q, True, self.data, self.value_sites)
-        return np.array([loss.term.metric(loss.term(state, self.frame)[0])[0] for loss in losses])
+        return np.array([loss.term.metric(loss.term(state, self.sample)[0])[0] for loss in losses])
 
     def value(self, q: np.ndarray) -> float:
         """The objective at ``q`` (n,)."""
@@ -207,7 +215,7 @@ class Objective:
         state = robot_state(self.robot, q, True, self.data, self.sites)
         h, dh_dq = np.empty(len(self.losses)), np.empty((len(self.losses), len(q)))
         for i, loss in enumerate(self.losses):
-            h[i], dh_dq[i] = loss.term.gradient(state, self.frame)
+            h[i], dh_dq[i] = loss.term.gradient(state, self.sample)
         if self.numeric:
             dh_dq[list(self.numeric)] = self._numeric_gradient(q, h[list(self.numeric)])
         total, slopes = self._total(h)
@@ -304,11 +312,11 @@ def solve(
     robot = problem.robot
     if settings.criteria and learned is None:
         learned = learn(robot)
-    gradients = dict(gradients=settings.gradients, fd_step=settings.fd_step)
-    objective = Objective(robot, build_losses(robot, settings, learned), **gradients)
+    objective = Objective(robot, build_losses(robot, settings, learned), settings.gradients, settings.fd_step)
     first = objective
     if settings.scenario == "relative":
-        first = Objective(robot, build_losses(robot, settings, learned, first=True), **gradients)
+        losses = build_losses(robot, settings, learned, first=True)
+        first = Objective(robot, losses, settings.gradients, settings.fd_step)
     opt = make_optimizer(robot, settings)
     status = np.zeros(problem.n_frames, dtype=int)
 
