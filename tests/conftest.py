@@ -85,6 +85,15 @@ def robot(request):
     return load_robot(request.param)
 
 
+ROBOTS = available_robots()
+
+
 def central_differences(fun, q: np.ndarray, eps: float = 1e-6) -> np.ndarray:
-    """d fun / dq by central differences: fun(q) (..., m) at q (n,) -> (..., m, n)."""
-    return np.stack([(fun(q + d) - fun(q - d)) / (2 * eps) for d in eps * np.eye(len(q))], axis=-1)
+    """d fun / dq by central differences over q's last axis: q (..., n) -> (..., m, n) for
+    fun(q) (..., m)."""
+    cols = []
+    for j in range(q.shape[-1]):
+        dq = np.zeros_like(q)
+        dq[..., j] = eps
+        cols.append((fun(q + dq) - fun(q - dq)) / (2 * eps))
+    return np.stack(cols, axis=-1)

@@ -12,18 +12,17 @@ import mujoco
 import numpy as np
 import pytest
 
+from conftest import ROBOTS
 from hlik.human.demo import demo_motion
 from hlik.robot.model import (
     COLLISION_GROUP,
     SIDES,
     VISUAL_GROUP,
-    available_robots,
     joint_mapping,
     load_robot,
     self_contacts,
 )
 
-ROBOTS = available_robots()
 PRIMITIVES = {
     int(mujoco.mjtGeom.mjGEOM_SPHERE),
     int(mujoco.mjtGeom.mjGEOM_CAPSULE),

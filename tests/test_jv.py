@@ -8,7 +8,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from conftest import solve_problem  # noqa: E402
+from conftest import ROBOTS, solve_problem
 from hlik import load_motion, load_robot, retarget
 from hlik.criteria.base import Sample
 from hlik.criteria.functional import relative_errors, target_terms
@@ -28,8 +28,6 @@ from hlik.solvers.jv import (
     primary,
     solve,
 )
-
-ROBOTS = ("armar3", "armar6", "dual_panda")
 
 
 def _within_limits(robot, q):

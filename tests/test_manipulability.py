@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 import hlik
+from conftest import ROBOTS
 from hlik.criteria.manipulability import (
     arm_manipulability,
     human_manipulability,
@@ -20,7 +21,6 @@ from hlik.criteria.manipulability import (
 from hlik.human.demo import demo_motion
 from hlik.robot.state import robot_state
 
-ROBOTS = ("armar3", "armar6", "dual_panda")
 STEP = 1e-6
 
 

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
+from conftest import ROBOTS, central_differences
 from hlik import load_motion, load_robot, retarget
 from hlik.cli import app
 from hlik.criteria import registry, unified
@@ -17,18 +18,6 @@ from hlik.errors import HlikError
 from hlik.human.demo import demo_motion
 from hlik.metrics import evaluate
 from hlik.robot.model import mapped_configuration
-
-ROBOTS = ("armar3", "armar6", "dual_panda")
-
-
-def _fd(fun, q, eps=1e-6):
-    cols = []
-    for j in range(q.shape[-1]):
-        dq = np.zeros_like(q)
-        dq[..., j] = eps
-        cols.append((fun(q + dq) - fun(q - dq)) / (2 * eps))
-    return np.stack(cols, axis=-1)
-
 
 TABLE_III = {  # name: (x0, inverse weight), paper Table III
     "EEA": (0.3, 20), "SOA_x": (0.2, 20), "SOA_q": (0.34, 20), "HJL": (0.48, 15), "SYN": (0.12, 15),
@@ -66,13 +55,17 @@ def test_joint_and_synergy_jacobians_match_finite_differences(robot):
     bands = (human_limits(r), robot_limits(r), mapped_pose(r, mapped_configuration(r, motion)[:3]))
     for band in bands:
         np.testing.assert_allclose(
-            _fd(band.residual, q),
+            central_differences(band.residual, q),
             np.broadcast_to(band.jacobian(r.dof), (3,) + band.jacobian(r.dof).shape),
             atol=1e-6,
         )
-    np.testing.assert_allclose(_fd(syn.syn_residual, q)[0], syn.syn_jacobian(r.dof), atol=1e-6)
     np.testing.assert_allclose(
-        _fd(lambda x: syn.syn_r_residual(x, q_ref), q)[0], syn.syn_r_jacobian(r.dof), atol=1e-6
+        central_differences(syn.syn_residual, q)[0], syn.syn_jacobian(r.dof), atol=1e-6
+    )
+    np.testing.assert_allclose(
+        central_differences(lambda x: syn.syn_r_residual(x, q_ref), q)[0],
+        syn.syn_r_jacobian(r.dof),
+        atol=1e-6,
     )
 
 

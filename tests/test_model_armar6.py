@@ -11,9 +11,9 @@ try:
 except ModuleNotFoundError:  # Python < 3.11
     import tomli as tomllib
 
-ROBOTS = Path(__file__).resolve().parents[1] / "robots"
-MJCF = ROBOTS / "mjcf/armar6.xml"
-TOML = ROBOTS / "armar6.toml"
+ROBOTS_DIR = Path(__file__).resolve().parents[1] / "robots"
+MJCF = ROBOTS_DIR / "mjcf/armar6.xml"
+TOML = ROBOTS_DIR / "armar6.toml"
 
 NAMES = ["Cla1", "Sho1", "Sho2", "Sho3", "Elb1", "Elb2", "Wri1", "Wri2"]
 LEFT = [f"ArmL{i}_{n}" for i, n in enumerate(NAMES, 1)]

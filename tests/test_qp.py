@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from conftest import solve_problem  # noqa: E402
+from conftest import ROBOTS, central_differences, solve_problem
 from hlik import load_motion, load_robot, retarget
 from hlik.cli import app
 from hlik.criteria.base import Sample
@@ -23,8 +23,6 @@ from hlik.robot.model import SIDES
 from hlik.robot.state import robot_state
 from hlik.solvers.mink_tasks import CriterionTask, HumanJointLimit
 from hlik.solvers.qp import QPSettings, qp_solver, solve
-
-ROBOTS = ("armar3", "armar6", "dual_panda")
 
 
 def _frame(robot, q_target):
@@ -59,10 +57,6 @@ def test_criteria_work_inside_plain_mink(robot):
 TARGET_TERMS = (fPOS, fORI, fPOS_off, fORI_off)
 
 
-def _fd(fun, q, eps=1e-6):
-    return np.stack([(fun(q + d) - fun(q - d)) / (2 * eps) for d in eps * np.eye(len(q))], axis=-1)
-
-
 def test_rotation_vector():
     from scipy.spatial.transform import Rotation
 
@@ -83,11 +77,11 @@ def test_target_term_jacobians(term, name):
     at_target = _frame(r, q)
     e0, jac = t(robot_state(r, q, jacobians=True), at_target)
     np.testing.assert_allclose(e0, 0.0, atol=1e-9)
-    np.testing.assert_allclose(_fd(lambda x: residual(x, at_target), q), jac, atol=1e-5)
+    np.testing.assert_allclose(central_differences(lambda x: residual(x, at_target), q), jac, atol=1e-5)
     away = _frame(r, np.clip(q + rng.normal(0, 0.3, r.dof), r.lower, r.upper))
     _, grad = t.gradient(robot_state(r, q, jacobians=True), away)
     cost = lambda x: np.array([t.gradient(robot_state(r, x, True), away)[0]])  # noqa: E731
-    np.testing.assert_allclose(_fd(cost, q)[0], grad, atol=1e-6)
+    np.testing.assert_allclose(central_differences(cost, q)[0], grad, atol=1e-6)
 
 
 @pytest.mark.parametrize("robot", ROBOTS)

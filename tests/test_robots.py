@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
+from conftest import ROBOTS
 from hlik import load_motion
 from hlik.cli import app
 from hlik.human.kinematics import human_model
@@ -14,7 +15,6 @@ from hlik.human.motion import ARM_JOINTS
 from hlik.robot.calibrate import calibrate
 from hlik.robot.model import SITES, available_robots, load_robot
 
-ROBOTS = ("armar3", "armar6", "dual_panda")
 PI = np.pi
 TABLE_I_PANDA = {  # paper Table I, 2-Panda (printed values)
     "left": ((-1, 1, -1, -1, -1, -1, 0), (0, -PI / 2, PI / 2, 0, -PI / 2, PI, 3 * PI / 4)),

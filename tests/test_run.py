@@ -12,11 +12,10 @@ import pytest
 from rerun.chunk import RrdReader
 from typer.testing import CliRunner
 
+from conftest import ROBOTS
 from hlik.cli import app
 from hlik.robot.model import load_robot
 from hlik.trajectory import load_trajectory
-
-ROBOTS = ("armar3", "armar6", "dual_panda")
 
 
 def _invoke(*args):

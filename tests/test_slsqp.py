@@ -8,7 +8,7 @@ import nlopt
 import numpy as np
 import pytest
 
-from conftest import solve_problem  # noqa: E402
+from conftest import ROBOTS, solve_problem
 from hlik import load_motion, load_robot, retarget
 from hlik.criteria.functional import relative_errors
 from hlik.criteria.learned import learn
@@ -29,8 +29,6 @@ from hlik.solvers.slsqp import (
     slsqp_solver,
     solve,
 )
-
-ROBOTS = ("armar3", "armar6", "dual_panda")
 
 
 def _problem(robot: str, start: float = 2.0, stop: float = 2.5):

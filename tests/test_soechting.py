@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 import hlik
+from conftest import ROBOTS
 from hlik.criteria.soechting import (
     mmm_angles,
     predict_arm,
@@ -22,7 +23,6 @@ from hlik.human.kinematics import human_model
 from hlik.robot.state import arm_lengths, robot_state
 
 MIRROR = np.array([-1.0, 1.0, 1.0])
-ROBOTS = ["armar3", "armar6", "dual_panda"]
 
 
 def unit(v):

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
+from conftest import ROBOTS
 from hlik import load_motion, load_robot
 from hlik.criteria.functional import position_error, rotation_angle
 from hlik.errors import TrajectoryFormatError
@@ -17,8 +18,6 @@ from hlik.human.kinematics import forward_kinematics
 from hlik.retarget import retarget
 from hlik.robot.model import SIDES, tcp_poses
 from hlik.trajectory import load_trajectory
-
-ROBOTS = ("armar3", "armar6", "dual_panda")
 
 
 @pytest.fixture(scope="module")

@@ -25,3 +25,14 @@ class RobotError(HlikError, ValueError):
 
 class TrajectoryFormatError(HlikError, ValueError):
     """A saved trajectory file is unreadable or inconsistent."""
+
+
+class SettingsError(HlikError, ValueError):
+    """A setting, option or argument outside what it may be (a scenario, a rate, a criterion name)."""
+
+
+class UnknownNameError(HlikError, KeyError):
+    """A name (criterion, solver, joint) that is not known; the message lists what is."""
+
+    def __str__(self) -> str:  # KeyError would quote the message
+        return str(self.args[0]) if self.args else ""

@@ -13,6 +13,7 @@ from hlik.criteria import registry, unified
 from hlik.criteria.base import Sample
 from hlik.criteria.learned import Learned
 from hlik.criteria.smoothness import history
+from hlik.errors import SettingsError
 from hlik.problem.reference import HumanReference
 from hlik.robot.model import Robot
 from hlik.robot.state import robot_state
@@ -94,7 +95,7 @@ def evaluate(
 ) -> Evaluation:
     """Costs, scores and the unified metric of ``traj`` (scenario ``pose`` or ``relative``)."""
     if scenario not in unified.FUNCTIONAL_X0:
-        raise ValueError(f"scenario must be one of {tuple(unified.FUNCTIONAL_X0)}, got {scenario!r}")
+        raise SettingsError(f"scenario must be one of {tuple(unified.FUNCTIONAL_X0)}, got {scenario!r}")
     h = costs(traj, robot, learned)
     x0 = unified.midpoints(scenario)
     m = {k: unified.score(h[k], x0[k]) for k in x0}

@@ -13,6 +13,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from hlik.criteria.base import Criterion, Sample, block_norm_cost, block_norm_gradient
+from hlik.errors import SettingsError
 
 
 def position_error(pos: np.ndarray, target: np.ndarray) -> np.ndarray:
@@ -176,4 +177,4 @@ def target_terms(scenario: str) -> tuple[Criterion, Criterion]:
         return fPOS(), fORI()
     if scenario == "relative":
         return fPOS_off(), fORI_off()
-    raise ValueError(f"scenario must be 'pose' or 'relative', got {scenario!r}")
+    raise SettingsError(f"scenario must be 'pose' or 'relative', got {scenario!r}")

@@ -18,6 +18,7 @@ from hlik.criteria.manipulability import MAN_r
 from hlik.criteria.smoothness import MJE
 from hlik.criteria.soechting import SOA_q, SOA_x
 from hlik.criteria.synergy import MIS, SYN, SYN_r
+from hlik.errors import SettingsError, UnknownNameError
 
 _CRITERIA: dict[str, type[Criterion]] = {}
 
@@ -30,7 +31,7 @@ def register(cls: type[Criterion]) -> type[Criterion]:
     """
     known = _CRITERIA.get(cls.name)
     if known is not None and known is not cls:
-        raise ValueError(f"a criterion named {cls.name!r} is registered already ({known.__qualname__})")
+        raise SettingsError(f"a criterion named {cls.name!r} is registered already ({known.__qualname__})")
     _CRITERIA[cls.name] = cls
     return cls
 
@@ -59,7 +60,8 @@ def criterion_class(name: str) -> type[Criterion]:
     try:
         return _CRITERIA[name]
     except KeyError:
-        raise KeyError(f"unknown criterion {name!r}; choose from: {', '.join(human_likeness())}") from None
+        known = ", ".join(human_likeness())
+        raise UnknownNameError(f"unknown criterion {name!r}; choose from: {known}") from None
 
 
 def criterion(name: str, robot: object, learned: object) -> Criterion:

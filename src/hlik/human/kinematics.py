@@ -13,6 +13,7 @@ import mujoco
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from hlik.errors import SettingsError
 from hlik.fk import site_poses
 from hlik.human.motion import HumanMotion
 from hlik.paths import robots_dir
@@ -92,7 +93,7 @@ def shoulder_frame(left: np.ndarray, right: np.ndarray) -> tuple[np.ndarray, np.
     x = np.array([right[0] - left[0], right[1] - left[1], 0.0])
     norm = np.linalg.norm(x)
     if norm < 1e-9:
-        raise ValueError("shoulders coincide in the horizontal plane; heading undefined")
+        raise SettingsError("shoulders coincide in the horizontal plane; heading undefined")
     x /= norm
     z = np.array([0.0, 0.0, 1.0])
     return np.column_stack([x, np.cross(z, x), z]), (left + right) / 2.0

@@ -46,16 +46,16 @@ def write_mmm(motion: HumanMotion, path: str | Path) -> None:
         lines.append("\t\t</Sensors>\n\t</Motion>")
     lines.append(f'\t<Motion name="{motion.name}" type="object" synchronized="true">')
     lines.append('\t\t<Model path="mmm.xml">\n\t\t\t<ModelProcessorConfig type="Winter">')
-    lines.append(f"\t\t\t\t<Height>{motion.height:.6g}</Height>")
+    lines.append(f"\t\t\t\t<Height>{_num(motion.height)}</Height>")
     if motion.mass is not None:
-        lines.append(f"\t\t\t\t<Mass>{motion.mass:.6g}</Mass>")
+        lines.append(f"\t\t\t\t<Mass>{_num(motion.mass)}</Mass>")
     lines.append("\t\t\t</ModelProcessorConfig>\n\t\t</Model>\n\t\t<Sensors>")
     lines += _pose_sensor(motion.times, motion.root_position, motion.root_rotation)
     lines.append('\t\t\t<Sensor type="Kinematic" version="1.0">\n\t\t\t\t<Configuration>')
     lines += [f'\t\t\t\t\t<Joint name="{n}"/>' for n in motion.joint_names]
     lines.append("\t\t\t\t</Configuration>\n\t\t\t\t<Data>")
     for t, q in zip(motion.times, motion.joints):
-        lines.append(f'\t\t\t\t\t<Measurement timestep="{t:.6g}">')
+        lines.append(f'\t\t\t\t\t<Measurement timestep="{_num(t)}">')
         lines.append(f"\t\t\t\t\t\t<JointPosition>{_fmt(q)}</JointPosition>")
         lines.append("\t\t\t\t\t</Measurement>")
     lines.append("\t\t\t\t</Data>\n\t\t\t</Sensor>")
@@ -289,15 +289,20 @@ def _rpy_to_matrix(rpy: np.ndarray) -> np.ndarray:
 # --- writing -------------------------------------------------------------------------------------
 
 
+def _num(value: float) -> str:
+    """The shortest text that reads back as the same float (exact round trips at any time base)."""
+    return repr(float(value))
+
+
 def _fmt(values: Iterable[float]) -> str:
-    return " ".join(f"{v:.9g}" for v in values)
+    return " ".join(_num(v) for v in values)
 
 
 def _pose_sensor(times, position, rotation) -> list[str]:
     rpy = Rotation.from_matrix(rotation).as_euler("xyz")
     out = ['\t\t\t<Sensor type="ModelPose" version="1.0">', "\t\t\t\t<Configuration/>", "\t\t\t\t<Data>"]
     for t, p, r in zip(times, position / MM, rpy):
-        out.append(f'\t\t\t\t\t<Measurement timestep="{t:.6g}">')
+        out.append(f'\t\t\t\t\t<Measurement timestep="{_num(t)}">')
         out.append(f"\t\t\t\t\t\t<RootPosition>{_fmt(p)}</RootPosition>")
         out.append(f"\t\t\t\t\t\t<RootRotation>{_fmt(r)}</RootRotation>")
         out.append("\t\t\t\t\t</Measurement>")
@@ -309,7 +314,7 @@ def _marker_sensor(times, markers) -> list[str]:
         return []
     out = ['\t\t\t<Sensor type="MoCapMarker" version="1.0">', "\t\t\t\t<Configuration/>", "\t\t\t\t<Data>"]
     for k, t in enumerate(times):
-        out.append(f'\t\t\t\t\t<Measurement timestep="{t:.6g}">')
+        out.append(f'\t\t\t\t\t<Measurement timestep="{_num(t)}">')
         out += [
             f'\t\t\t\t\t\t<MarkerPosition name="{n}">{_fmt(p[k] / MM)}</MarkerPosition>'
             for n, p in markers.items()

@@ -14,6 +14,8 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 from scipy.spatial.transform import Rotation, Slerp
 
+from hlik.errors import SettingsError, UnknownNameError
+
 # The 14 MMM arm joints every motion must carry (kinematics.md §1.2), proximal -> distal, in the
 # order of the paper's Table I (s_x, s_y, s_z, e_x, e_z, w_x, w_z=w_y).
 ARM_JOINTS: dict[str, tuple[str, ...]] = {
@@ -89,7 +91,7 @@ class HumanMotion:
         try:
             return self.joints[:, self.joint_names.index(name)]
         except ValueError:
-            raise KeyError(f"{self.name}: no joint {name!r}") from None
+            raise UnknownNameError(f"{self.name}: no joint {name!r}") from None
 
     def angles(self, names: Sequence[str]) -> np.ndarray:
         """(T, k) angles of the named joints, in the order given."""
@@ -104,7 +106,7 @@ class HumanMotion:
     def resample(self, rate: float) -> HumanMotion:
         """Resample to ``rate`` Hz: cubic splines for angles and positions, slerp for rotations."""
         if rate <= 0:
-            raise ValueError(f"{self.name}: resampling rate must be positive, got {rate}")
+            raise SettingsError(f"{self.name}: resampling rate must be positive, got {rate}")
         t_new = self.times[0] + np.arange(0.0, self.duration + 1e-9, 1.0 / rate)
         return replace(
             self,

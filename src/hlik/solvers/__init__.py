@@ -16,6 +16,7 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping
 from types import MappingProxyType
 
+from hlik.errors import UnknownNameError
 from hlik.solvers import jm, jv, qp, slsqp
 from hlik.solvers.base import Diagnostics, Solver, SolverResult
 
@@ -38,8 +39,10 @@ def get_solver(
     called after each frame ``k``.
 
     Raises:
-        KeyError: unknown name.
+        UnknownNameError: unknown name.
     """
+    if name not in SOLVERS:
+        raise UnknownNameError(f"unknown solver {name!r}; choose one of: {', '.join(SOLVERS)}")
     factory = SOLVERS[name]
     return (
         factory(settings, learned, progress)

@@ -27,6 +27,7 @@ from hlik.criteria.base import Sample, Term
 from hlik.criteria.functional import fORI, fORI_off, fPOS, fPOS_off
 from hlik.criteria.learned import Learned, learn
 from hlik.criteria.smoothness import ACCELERATION, JERK, VELOCITY, Smoothness
+from hlik.errors import SettingsError
 from hlik.problem.problem import Problem
 from hlik.robot.model import Robot
 from hlik.robot.state import robot_state
@@ -107,9 +108,9 @@ class SLSQPSettings:
 
     def __post_init__(self):
         if self.scenario not in ("pose", "relative"):
-            raise ValueError(f"scenario must be 'pose' or 'relative', not {self.scenario!r}")
+            raise SettingsError(f"scenario must be 'pose' or 'relative', not {self.scenario!r}")
         if self.gradients not in ("analytic", "fd"):
-            raise ValueError(f"gradients must be 'analytic' or 'fd', not {self.gradients!r}")
+            raise SettingsError(f"gradients must be 'analytic' or 'fd', not {self.gradients!r}")
 
     @classmethod
     def relative(cls, criteria: tuple[str, ...] = (), **changes) -> SLSQPSettings:
