@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from conftest import ROBOTS, central_differences
+from conftest import ROBOTS
 from hlik import load_motion, load_robot, retarget
 from hlik.cli import app
 from hlik.criteria import registry, unified
-from hlik.criteria.joints import human_limits, mapped_pose, robot_limits
+from hlik.criteria.joints import human_limits, mapped_pose
 from hlik.criteria.learned import cache_dir, learn
 from hlik.errors import HlikError
 from hlik.human.demo import demo_motion
@@ -42,31 +42,6 @@ def test_logistic_and_weights():
     m = dict.fromkeys(registry.human_likeness(), 0.7)
     assert unified.hierarchical(m) == pytest.approx(0.7)
     assert unified.combined(1.0, 0.0) == 0.5
-
-
-@pytest.mark.parametrize("robot", ROBOTS)
-def test_joint_and_synergy_jacobians_match_finite_differences(robot):
-    r = load_robot(robot)
-    rng = np.random.default_rng(1)
-    q = rng.uniform(np.maximum(r.lower, -3), np.minimum(r.upper, 3), (3, r.dof))
-    motion = demo_motion().crop(0, 0.2)
-    syn = learn(r).synergies
-    q_ref = rng.normal(size=(3, r.dof))
-    bands = (human_limits(r), robot_limits(r), mapped_pose(r, mapped_configuration(r, motion)[:3]))
-    for band in bands:
-        np.testing.assert_allclose(
-            central_differences(band.residual, q),
-            np.broadcast_to(band.jacobian(r.dof), (3,) + band.jacobian(r.dof).shape),
-            atol=1e-6,
-        )
-    np.testing.assert_allclose(
-        central_differences(syn.syn_residual, q)[0], syn.syn_jacobian(r.dof), atol=1e-6
-    )
-    np.testing.assert_allclose(
-        central_differences(lambda x: syn.syn_r_residual(x, q_ref), q)[0],
-        syn.syn_r_jacobian(r.dof),
-        atol=1e-6,
-    )
 
 
 @pytest.mark.parametrize("robot", ROBOTS)
