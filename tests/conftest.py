@@ -97,3 +97,11 @@ def central_differences(fun, q: np.ndarray, eps: float = 1e-6) -> np.ndarray:
         dq[..., j] = eps
         cols.append((fun(q + dq) - fun(q - dq)) / (2 * eps))
     return np.stack(cols, axis=-1)
+
+
+def slowed(motion, factor: float):
+    """``motion`` played ``factor`` times slower: robot targets made from it stay within the robots'
+    joint speed limits (human arms move faster than ARMAR-III's 1 rad/s)."""
+    from dataclasses import replace
+
+    return replace(motion, times=motion.times[0] + factor * (motion.times - motion.times[0]))

@@ -8,7 +8,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from conftest import ROBOTS, solve_problem
+from conftest import ROBOTS, slowed, solve_problem
 from hlik import load_motion, load_robot, retarget
 from hlik.criteria.base import Sample
 from hlik.criteria.functional import relative_errors, target_terms
@@ -134,7 +134,7 @@ def test_unreachable_targets_give_finite_motion_and_report_the_error():
 def test_every_robot_and_scenario(name, scenario):
     """Self-made (reachable) targets: the tracked quantity converges, within the limits."""
     r = load_robot(name)
-    motion = demo_motion().crop(0, 1.0).resample(50.0)
+    motion = slowed(demo_motion().crop(0, 1.0).resample(50.0), 3.0)
     placement, targets = _self_targets(r, motion)
     frames = []
     settings = JVSettings(scenario=scenario)
@@ -155,12 +155,13 @@ def test_criterion_in_the_null_space_lowers_its_cost(takes):
     (10-dim null space) keeps the defaults."""
     r = load_robot("armar6")
     learned = learn(r)
-    motion = load_motion(takes[0], rate=100).crop(2.0, 2.5)
+    motion = slowed(load_motion(takes[0], rate=100).crop(2.0, 2.5), 5.0)
     for base in (JVSettings(jla_gamma=0.0), JVSettings(scenario="relative")):
         with_hja = replace(base, criteria=("HJA_r",))
         plain = costs(retarget(motion, r, jv_solver(base, learned)), r, learned)
         hja = costs(retarget(motion, r, jv_solver(with_hja, learned)), r, learned)
-        assert np.mean(hja["HJA_r"]) < 0.95 * np.mean(plain["HJA_r"]), base.scenario
+        # the null space moves the posture at most at the joint speed limits: a few per cent here
+        assert np.mean(hja["HJA_r"]) < 0.98 * np.mean(plain["HJA_r"]), base.scenario
         tracked = "fPOS" if base.scenario == "pose" else "fPOS_off"
         assert np.median(hja[tracked]) < 0.01
 

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from conftest import ROBOTS, central_differences, solve_problem
+from conftest import ROBOTS, central_differences, slowed, solve_problem
 from hlik import load_motion, load_robot, retarget
 from hlik.cli import app
 from hlik.criteria.base import Sample
@@ -88,8 +88,8 @@ def test_target_term_jacobians(term, name):
 def test_reachable_targets_converge_within_the_iteration_limit(robot):
     """Targets made by the robot itself: every frame stops early, on target."""
     r = load_robot(robot)
-    motion = demo_motion().crop(0, 1.0).resample(50.0)
-    jm = retarget(motion, r)  # a feasible, smooth robot motion
+    motion = slowed(demo_motion().crop(0, 1.0).resample(50.0), 3.0)
+    jm = retarget(motion, r)  # a feasible, smooth robot motion, within the speed limits
     placement = shoulder_placement(r, forward_kinematics(motion))
     targets = HandTargets(jm.tcp_pos, jm.tcp_rot)
     settings = QPSettings(max_iter=30)
@@ -164,7 +164,7 @@ def test_relative_scenario_keeps_the_hands_relative_pose(takes, name):
     from hlik.criteria.functional import relative_errors
 
     r = load_robot(name)
-    motion = load_motion(takes[7], rate=50.0).crop(1.0, 2.0)
+    motion = slowed(load_motion(takes[7], rate=50.0).crop(1.0, 2.0), 5.0)
     traj = retarget(motion, r, qp_solver(QPSettings(scenario="relative")))
     off_pos, off_rot = relative_errors(traj.tcp_pos, traj.tcp_rot, traj.targets.pos, traj.targets.rot)
     assert np.median(off_pos) < 0.01 and np.median(off_rot) < np.radians(3)

@@ -149,7 +149,8 @@ def test_a_frame_with_nan_targets_fails_alone_and_keeps_the_last_configuration(m
     assert tuple(np.flatnonzero(info.diagnostics.failed)) == (3,) and info.info["status"][3] == nlopt.FAILURE
     assert np.all(np.isfinite(q))
     np.testing.assert_array_equal(q[3], q[2])  # nothing finite was evaluated: the last good one
-    assert np.median(_fpos(r, q[4:], targets.pos[4:])) < 0.01  # and the run goes on
+    after = _fpos(r, q[4:], targets.pos[4:])  # and the run goes on, catching up at its speed limits
+    assert np.all(np.diff(after) < 0) and after[-1] < 0.01
 
 
 @pytest.mark.parametrize("error", [nlopt.RoundoffLimited, nlopt.runtime_error], ids=lambda e: e.__name__)

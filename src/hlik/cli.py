@@ -155,7 +155,7 @@ def run(
         _fail(e)
     except OSError as e:
         _fail(HlikError(f"{e.filename or rrd}: cannot write ({e.strerror or e})"))
-    console.print(_run_summary(path.stem, traj, m, solve_time, rrd, npz))
+    console.print(_run_summary(path.stem, traj, m, solve_time, rrd, npz, ev))
     console.print(
         f"human likeness m_hl = {ev.m_hl:.3f}, functional m_f = {ev.m_f:.3f} ({scenario}), "
         f"m_hl,f = {ev.m_hl_f:.3f}   (details: hlik evaluate {npz})"
@@ -175,7 +175,7 @@ def _check_writable(path: Path, create: bool) -> None:
         raise HlikError(f"{path}: output folder {folder} is not writable")
 
 
-def _run_summary(title: str, traj, motion, solve_time: float, rrd: Path, npz: Path) -> Table:
+def _run_summary(title: str, traj, motion, solve_time: float, rrd: Path, npz: Path, ev) -> Table:
     from hlik.criteria.functional import position_error, relative_errors, rotation_angle
 
     fpos = position_error(traj.tcp_pos, traj.targets.pos)
@@ -197,6 +197,11 @@ def _run_summary(title: str, traj, motion, solve_time: float, rrd: Path, npz: Pa
             f"fPOS mean {100 * fpos[:, i].mean():.1f} cm, max {100 * fpos[:, i].max():.1f} cm; "
             f"fORI mean {np.degrees(fori[:, i].mean()):.1f}°, max {np.degrees(fori[:, i].max()):.1f}°",
         )
+    table.add_row(
+        "body",
+        f"{int(np.count_nonzero(ev.collisions))} frames in self-collision; max joint speed "
+        f"{ev.max_speed_ratio:.2f} x its limit",
+    )
     off_pos, off_rot = relative_errors(traj.tcp_pos, traj.tcp_rot, traj.targets.pos, traj.targets.rot)
     table.add_row(
         "hands relative",

@@ -7,15 +7,17 @@ from __future__ import annotations
 from dataclasses import dataclass
 from types import MappingProxyType
 
+import mujoco
 import numpy as np
 
 from hlik.criteria import registry, unified
+from hlik.criteria.angles import joint_difference
 from hlik.criteria.base import Sample
 from hlik.criteria.learned import Learned
 from hlik.criteria.smoothness import history
 from hlik.errors import SettingsError
 from hlik.problem.reference import HumanReference
-from hlik.robot.model import Robot
+from hlik.robot.model import Robot, self_contacts
 from hlik.robot.state import robot_state
 from hlik.trajectory import Trajectory
 
@@ -33,6 +35,8 @@ class Evaluation:
         m_f: Functional score of the scenario.
         m_hl_f: alpha m_hl + (1 - alpha) m_f.
         scenario: ``pose`` (end-effector poses) or ``relative`` (relative pose of the hands).
+        speed_ratio: (T - 1,) each step's largest joint speed over that joint's limit (> 1: too fast).
+        collisions: (T,) True where the robot touches itself (:func:`hlik.robot.model.self_contacts`).
     """
 
     h: MappingProxyType
@@ -41,6 +45,13 @@ class Evaluation:
     m_f: float
     m_hl_f: float
     scenario: str
+    speed_ratio: np.ndarray
+    collisions: np.ndarray
+
+    @property
+    def max_speed_ratio(self) -> float:
+        """The largest joint speed over its limit in any step (> 1: faster than the robot can move)."""
+        return float(self.speed_ratio.max(initial=0.0))
 
     def curves(self) -> dict[str, np.ndarray]:
         """Criterion name -> (T,) per-frame score f_x0(h_i(t)), the curves m_i averages."""
@@ -57,6 +68,8 @@ class Evaluation:
             "m_f": self.m_f,
             "m_hl_f": self.m_hl_f,
             "scenario": self.scenario,
+            "collisions": int(np.count_nonzero(self.collisions)),
+            "max_speed_ratio": self.max_speed_ratio,
         }
 
 
@@ -107,7 +120,24 @@ def evaluate(
         m_f=m_f,
         m_hl_f=unified.combined(m_hl, m_f, alpha),
         scenario=scenario,
+        speed_ratio=speed_ratios(traj, robot),
+        collisions=collision_frames(traj, robot),
     )
+
+
+def speed_ratios(traj: Trajectory, robot: Robot) -> np.ndarray:
+    """(T - 1,) per step, the largest |dq/dt| over the joint's speed limit (unlimited joints as angles)."""
+    if traj.n_frames < 2:
+        return np.zeros(0)
+    step = joint_difference(traj.q[1:], traj.q[:-1], np.isinf(robot.lower))
+    speed = np.abs(step) / np.diff(traj.times)[:, None]
+    return np.max(speed / robot.velocity_limit, axis=1)
+
+
+def collision_frames(traj: Trajectory, robot: Robot) -> np.ndarray:
+    """(T,) True where the robot's collision geometry touches itself."""
+    data = mujoco.MjData(robot.model)
+    return np.array([bool(self_contacts(robot, q, data)) for q in traj.q], dtype=bool)
 
 
 __all__ = ["FUNCTIONAL", "Evaluation", "costs", "evaluate"]

@@ -2,7 +2,10 @@
 
 Every frame is solved from the previous frame's solution (the first from the clipped mapped human
 pose, as JM gives it), with the frame's targets and human reference in a one-row
-:class:`hlik.criteria.base.Sample`.
+:class:`hlik.criteria.base.Sample`, inside the frame's joint box: the joint limits intersected with
+what each joint's speed limit allows since the previous frame (``|q_t - q_t-1| <= v_max dt``), so no
+frame jumps; a frame whose target lies farther lags behind it. The first frame, where the robot
+starts from the mapped human pose, is bounded by the joint limits only.
 """
 
 from __future__ import annotations
@@ -31,7 +34,26 @@ class FrameResult:
     failed: bool = False
 
 
-FrameSolver = Callable[[int, Sample, np.ndarray], FrameResult]
+@dataclass(frozen=True)
+class JointBox:
+    """Bounds (n,) each on a frame's configuration, rad (infinite for unlimited joints)."""
+
+    lower: np.ndarray
+    upper: np.ndarray
+
+    def clip(self, q: np.ndarray) -> np.ndarray:
+        return np.clip(q, self.lower, self.upper)
+
+
+FrameSolver = Callable[[int, Sample, np.ndarray, JointBox], FrameResult]
+
+
+def joint_box(robot: Robot, q_previous: np.ndarray | None, dt: float) -> JointBox:
+    """The joint limits, intersected with the speed limits' reach from ``q_previous`` if given."""
+    if q_previous is None:
+        return JointBox(robot.lower, robot.upper)
+    reach = robot.velocity_limit * dt
+    return JointBox(np.maximum(robot.lower, q_previous - reach), np.minimum(robot.upper, q_previous + reach))
 
 
 def sample_at(ref: HumanReference, targets: HandTargets, k: int, history: np.ndarray, dt: float) -> Sample:
@@ -43,7 +65,7 @@ def sample_at(ref: HumanReference, targets: HandTargets, k: int, history: np.nda
 def track(
     problem: Problem, solve_frame: FrameSolver, progress: Callable[[int], None] | None = None
 ) -> SolverResult:
-    """Solve frame by frame with ``solve_frame(k, sample, q_previous) -> FrameResult``."""
+    """Solve frame by frame with ``solve_frame(k, sample, q_previous, box) -> FrameResult``."""
     robot, n_frames = problem.robot, problem.n_frames
     q = np.clip(problem.reference.q_map[0], robot.lower, robot.upper)
     history = np.tile(q, (3, 1))
@@ -54,7 +76,7 @@ def track(
     for k in range(n_frames):
         start = time.perf_counter()
         sample = sample_at(problem.reference, problem.targets, k, history, problem.dt)
-        result = solve_frame(k, sample, q)
+        result = solve_frame(k, sample, q, joint_box(robot, q if k else None, problem.dt))
         seconds[k] = time.perf_counter() - start
         q = result.q
         iterations[k], converged[k], failed[k] = result.iterations, result.converged, result.failed
@@ -67,13 +89,14 @@ def track(
 
 
 def iterate(
-    step: Callable[[np.ndarray], np.ndarray], q: np.ndarray, robot: Robot, max_iter: int, tol: float
+    step: Callable[[np.ndarray], np.ndarray], q: np.ndarray, box: JointBox, max_iter: int, tol: float
 ) -> FrameResult:
-    """Repeat ``q <- clip(q + step(q))`` until no joint moves more than ``tol`` (converged) or
-    ``max_iter`` steps (the paper's stopping rule for JV)."""
+    """Repeat ``q <- clip(q + step(q))`` into ``box`` until no joint moves more than ``tol``
+    (converged) or ``max_iter`` steps (the paper's stopping rule for JV)."""
     steps, converged = 0, False
+    q = box.clip(q)
     while steps < max_iter:
-        new = np.clip(q + step(q), robot.lower, robot.upper)
+        new = box.clip(q + step(q))
         moved, q, steps = np.max(np.abs(new - q)), new, steps + 1
         if moved < tol:
             converged = True

@@ -29,7 +29,7 @@ from hlik.problem.problem import Problem
 from hlik.robot.model import Robot
 from hlik.robot.state import RobotState, robot_state
 from hlik.solvers.base import ConfiguredSolver, SolverResult
-from hlik.solvers.frames import FrameResult, iterate, track
+from hlik.solvers.frames import FrameResult, JointBox, iterate, track
 
 
 @dataclass(frozen=True)
@@ -129,21 +129,30 @@ def weighted_least_norm(jac: np.ndarray, xdot: np.ndarray, weights: np.ndarray, 
 
 
 def clamped_least_norm(
-    jac: np.ndarray, xdot: np.ndarray, weights: np.ndarray, damping: float, q: np.ndarray, robot: Robot
+    jac: np.ndarray, xdot: np.ndarray, weights: np.ndarray, damping: float, q: np.ndarray, box: JointBox
 ) -> np.ndarray:
-    """:func:`weighted_least_norm` without the joints at a limit that it would push past the limit.
+    """:func:`weighted_least_norm` without the joints at a bound of ``box`` (the joint limits, or the
+    frame's speed-limited box) that it would push past the bound.
 
     Clipping such a step afterwards leaves a residual step the rest of the arm never compensates;
     solving again without those joints (an infinite weight, Chan & Dubey's W at the limit) does.
     """
     qdot = weighted_least_norm(jac, xdot, weights, damping)
     for _ in range(len(q)):
-        out = ((q <= robot.lower) & (qdot < 0.0)) | ((q >= robot.upper) & (qdot > 0.0))
+        out = ((q <= box.lower) & (qdot < 0.0)) | ((q >= box.upper) & (qdot > 0.0))
         if not np.any(out & np.isfinite(weights)):
             break
         weights = np.where(out, np.inf, weights)
         qdot = weighted_least_norm(jac, xdot, weights, damping)
     return qdot
+
+
+def _fraction_inside(q: np.ndarray, step: np.ndarray, box: JointBox) -> float:
+    """The largest s in [0, 1] with ``q + s step`` inside ``box`` where ``q`` is (joints outside
+    already do not count)."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        room = np.where(step > 0, (box.upper - q) / step, np.where(step < 0, (box.lower - q) / step, np.inf))
+    return float(np.clip(np.min(room, initial=1.0), 0.0, 1.0))
 
 
 def null_space_projector(jac: np.ndarray, rcond: float = 1e-6) -> np.ndarray:
@@ -201,8 +210,10 @@ def step(
     settings: JVSettings,
     memory: Memory,
     data: mujoco.MjData | None = None,
+    box: JointBox | None = None,
 ) -> tuple[np.ndarray, Memory]:
-    """One JV step from ``q`` (n,): the joint change dq (n,), before clipping, and the new memory.
+    """One JV step from ``q`` (n,) within ``box`` (default: the joint limits): the joint change dq
+    (n,), before clipping, and the new memory.
 
     The null-space bound halves whenever the null-space step reverses: the steep H (and the
     criteria) make bounded gradient steps of a fixed size zig-zag across their minimum, so a frame
@@ -213,9 +224,15 @@ def step(
     e, jac = primary(targets, state, frame, settings.orientation_weight)
     _, jla = chan_dubey(q, robot.lower, robot.upper)
     damping = np.hypot(settings.damping, np.linalg.norm(e)) if settings.error_damping else settings.damping
-    task = clamped_least_norm(jac, -settings.step * e, limit_weights(jla, memory.jla), damping, q, robot)
+    box = box or JointBox(robot.lower, robot.upper)
+    task = clamped_least_norm(jac, -settings.step * e, limit_weights(jla, memory.jla), damping, q, box)
     grad = secondary(criteria, state, frame, jla, settings)
-    null = settings.k * (null_space_projector(jac, settings.rcond) @ grad)
+    # joints at a bound of the frame's box are held: the null space is that of the others, and the
+    # step is scaled (not clipped) into the box, since a clipped null-space step moves the targets
+    free = (q > box.lower) & (q < box.upper)
+    null = np.zeros(robot.dof)
+    null[free] = settings.k * (null_space_projector(jac[:, free], settings.rcond) @ grad[free])
+    null = null * _fraction_inside(q + task, null, box)
     null_bound = memory.null_bound * (0.5 if null @ memory.null < 0.0 else 1.0)
     null = bound(null, null_bound)
     dq = bound(task + null, settings.max_step)
@@ -239,7 +256,7 @@ def solve(
     data = mujoco.MjData(robot.model)
     memory: Memory | None = None
 
-    def solve_frame(k: int, frame: Sample, q: np.ndarray) -> FrameResult:
+    def solve_frame(k: int, frame: Sample, q: np.ndarray, box: JointBox) -> FrameResult:
         nonlocal memory
         if memory is None:
             memory = Memory(
@@ -250,10 +267,12 @@ def solve(
         def jv_step(x: np.ndarray) -> np.ndarray:
             nonlocal memory
             assert memory is not None
-            dq, memory = step(robot, first if k == 0 else tasks, criteria, x, frame, settings, memory, data)
+            dq, memory = step(
+                robot, first if k == 0 else tasks, criteria, x, frame, settings, memory, data, box
+            )
             return dq
 
-        return iterate(jv_step, q, robot, settings.max_iter * (10 if k == 0 else 1), settings.tol)
+        return iterate(jv_step, q, box, settings.max_iter * (10 if k == 0 else 1), settings.tol)
 
     return track(problem, solve_frame, progress)
 

@@ -17,7 +17,7 @@ from hlik.criteria.base import Sample
 from hlik.problem.problem import Problem
 from hlik.robot.model import SIDES
 from hlik.solvers.base import SolverResult
-from hlik.solvers.frames import FrameResult, track
+from hlik.solvers.frames import FrameResult, JointBox, track
 from hlik.solvers.mink_tasks import CriterionTask
 
 
@@ -50,7 +50,7 @@ class MinkSolver:
         config = mink.Configuration(problem.robot.model)
         hands = {f"{side}_tcp": i for i, side in enumerate(SIDES)}
 
-        def solve_frame(k: int, sample: Sample, q: np.ndarray) -> FrameResult:
+        def solve_frame(k: int, sample: Sample, q: np.ndarray, box: JointBox) -> FrameResult:
             config.update(q)
             for task in self.tasks:
                 if isinstance(task, mink.FrameTask) and task.frame_name in hands:
@@ -65,6 +65,6 @@ class MinkSolver:
                     config, self.tasks, sample.dt, self.solver, self.damping, limits=self.limits
                 )
                 config.integrate_inplace(v, sample.dt)
-            return FrameResult(config.q.copy(), steps)
+            return FrameResult(box.clip(config.q), steps)
 
         return track(problem, solve_frame)

@@ -27,7 +27,7 @@ from hlik.problem.problem import Problem
 from hlik.robot.model import Robot
 from hlik.robot.state import robot_state
 from hlik.solvers.base import ConfiguredSolver, SolverResult
-from hlik.solvers.frames import FrameResult, iterate, track
+from hlik.solvers.frames import FrameResult, JointBox, iterate, track
 
 
 @dataclass(frozen=True)
@@ -123,8 +123,10 @@ def step(
     frame: Sample,
     settings: QPSettings,
     data: mujoco.MjData | None = None,
+    box: JointBox | None = None,
 ) -> np.ndarray:
-    """One QP step from ``q`` (n,): the joint change dq (n,). Reuse ``data`` across steps."""
+    """One QP step from ``q`` (n,) within ``box`` (default: the joint limits): the joint change dq
+    (n,). Reuse ``data`` across steps."""
     state = robot_state(robot, q, jacobians=bool(stack.sites), data=data, jacobian_sites=stack.sites)
     gradient = np.zeros(robot.dof)
     rows, errors = [], []
@@ -140,8 +142,9 @@ def step(
         a = np.vstack(rows)
         hessian = hessian + a.T @ a
         gradient += a.T @ np.concatenate(errors)
-    lb = np.maximum(robot.lower - q, -settings.max_step)
-    ub = np.minimum(robot.upper - q, settings.max_step)
+    lower, upper = (robot.lower, robot.upper) if box is None else (box.lower, box.upper)
+    lb = np.minimum(np.maximum(lower - q, -settings.max_step), 0.0)  # q outside the box moves back
+    ub = np.maximum(np.minimum(upper - q, settings.max_step), 0.0)
     dq = _solve(hessian, gradient, lb, ub, settings.solver)
     if dq is None or not np.all(np.isfinite(dq)):
         return np.zeros(robot.dof)  # infeasible or failed step: stay (limits hold, nothing NaN)
@@ -172,11 +175,11 @@ def solve(
     first = Assembly(build_terms(robot, settings, learned, scenario="pose"), robot.dof, settings.damping)
     data = mujoco.MjData(robot.model)
 
-    def solve_frame(k: int, frame: Sample, q: np.ndarray) -> FrameResult:
+    def solve_frame(k: int, frame: Sample, q: np.ndarray, box: JointBox) -> FrameResult:
         stack = first if k == 0 else terms
         max_iter = settings.max_iter * (10 if k == 0 else 1)
         return iterate(
-            lambda x: step(robot, stack, x, frame, settings, data), q, robot, max_iter, settings.tol
+            lambda x: step(robot, stack, x, frame, settings, data, box), q, box, max_iter, settings.tol
         )
 
     return track(problem, solve_frame, progress)

@@ -32,7 +32,7 @@ from hlik.problem.problem import Problem
 from hlik.robot.model import Robot
 from hlik.robot.state import robot_state
 from hlik.solvers.base import ConfiguredSolver, SolverResult
-from hlik.solvers.frames import FrameResult, track
+from hlik.solvers.frames import FrameResult, JointBox, track
 
 # Sec. IV-A's gamma_p = 10 for the TCP position. The relative position (m, like fPOS) gets it too:
 # with 1 the groove's well (c = 0.1) is 10 cm wide and SLSQP leaves fPOS^off at 10-50 cm on the
@@ -321,11 +321,13 @@ def solve(
     opt = make_optimizer(robot, settings)
     status = np.zeros(problem.n_frames, dtype=int)
 
-    def solve_frame_k(k: int, frame: Sample, q: np.ndarray) -> FrameResult:
+    def solve_frame_k(k: int, frame: Sample, q: np.ndarray, box: JointBox) -> FrameResult:
         obj, max_eval = (first, settings.first_eval) if k == 0 else (objective, settings.max_eval)
-        q, status[k] = solve_frame(opt, obj, frame, q, max_eval)
+        opt.set_lower_bounds(box.lower)
+        opt.set_upper_bounds(box.upper)
+        q, status[k] = solve_frame(opt, obj, frame, box.clip(q), max_eval)
         converged = status[k] > 0 and status[k] != nlopt.MAXEVAL_REACHED
-        return FrameResult(np.clip(q, robot.lower, robot.upper), obj.evaluations, converged, status[k] < 0)
+        return FrameResult(box.clip(q), obj.evaluations, converged, status[k] < 0)
 
     result = track(problem, solve_frame_k, progress)
     return replace(result, info=MappingProxyType({"status": status}))
