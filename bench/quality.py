@@ -5,7 +5,8 @@ An approach is a solver with the criteria it adds, e.g. ``jm``, ``qp``, ``qp+SYN
 (``--scenario``). Each take is cropped to ``--seconds`` after skipping the first second.
 ``fPOS reach`` is the median over frames whose target lies within 95 % of the arm's length from the
 robot's shoulder (the frames the robot can reach); ``capped %`` the share of frames that ended at the
-solver's iteration cap.
+solver's iteration cap; ``speed`` the largest joint speed over its limit in any step (any take) and
+``contact %`` the share of frames in self-collision.
 
 Run by hand: ``python bench/quality.py [--robots armar3,armar6] [--approaches qp,qp+SYN]
 [--set criterion_cost=0.1]`` (``--set`` overrides a field of the solvers' settings).
@@ -49,7 +50,7 @@ def run(
     stack = load_stack("relative_pose" if scenario == "relative" else "ee_pose").with_criteria(criteria)
     learned = learn(robot)
     settings = replace(stack.settings(solver), **overrides) if solver != "jm" else None
-    rows, fpos, freach, off, times, capped = [], [], [], [], [], []
+    rows, fpos, freach, off, times, capped, speed, contact = [], [], [], [], [], [], [], []
     for take in takes:
         motion = hlik.load_motion(take, rate=100.0)
         motion = motion.crop(1.0, min(1.0 + seconds, motion.duration))
@@ -60,6 +61,8 @@ def run(
         ev = evaluate(traj, robot, learned, scenario=scenario)
         err = position_error(traj.tcp_pos, traj.targets.pos)
         rows.append((ev.m_hl, ev.m_f, ev.m_hl_f))
+        speed.append(ev.max_speed_ratio)
+        contact.append(ev.collisions)
         fpos.append(err.ravel())
         freach.append(err[reachable(robot, traj)])
         off.append(relative_errors(traj.tcp_pos, traj.tcp_rot, traj.targets.pos, traj.targets.rot)[0])
@@ -73,6 +76,8 @@ def run(
         "fpos_off": np.median(np.concatenate(off)),
         "ms": 1e3 * np.median(times),
         "capped": 100 * np.mean(np.concatenate(capped)),
+        "speed": max(speed),
+        "contact": 100 * np.mean(np.concatenate(contact)),
     }
 
 
@@ -92,7 +97,8 @@ def main() -> None:
     print(f"{len(takes)} takes x {args.seconds:g} s, scenario {args.scenario}")
     head = f"{'robot':11s} {'approach':18s} {'m_hl':>6s} {'m_f':>6s} {'m_hl,f':>6s} "
     print(
-        head + f"{'fPOS cm':>8s} {'reach cm':>8s} {'off cm':>7s} {'ms/frame':>8s} {'capped %':>8s}",
+        head
+        + f"{'fPOS cm':>8s} {'reach cm':>8s} {'off cm':>7s} {'ms/frame':>8s} {'capped %':>8s} {'speed':>6s} {'contact %':>9s}",
         flush=True,
     )
     for robot_name in args.robots.split(","):
@@ -101,7 +107,7 @@ def main() -> None:
             print(
                 f"{robot_name:11s} {approach:18s} {r['m_hl']:6.3f} {r['m_f']:6.3f} {r['m_hl_f']:6.3f} "
                 f"{100 * r['fpos']:8.2f} {100 * r['freach']:8.2f} {100 * r['fpos_off']:7.2f} {r['ms']:8.2f} "
-                f"{r['capped']:8.1f}",
+                f"{r['capped']:8.1f} {r['speed']:6.2f} {r['contact']:9.1f}",
                 flush=True,
             )
 
