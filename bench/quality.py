@@ -96,11 +96,16 @@ def main() -> None:
         raise SystemExit(f"{DATA / 'kit_bimanual'}: no takes (set HLIK_DATA)")
     print(f"{len(takes)} takes x {args.seconds:g} s, scenario {args.scenario}")
     head = f"{'robot':11s} {'approach':18s} {'m_hl':>6s} {'m_f':>6s} {'m_hl,f':>6s} "
-    print(
-        head
-        + f"{'fPOS cm':>8s} {'reach cm':>8s} {'off cm':>7s} {'ms/frame':>8s} {'capped %':>8s} {'speed':>6s} {'contact %':>9s}",
-        flush=True,
+    cols = (
+        ("fPOS cm", 8),
+        ("reach cm", 8),
+        ("off cm", 7),
+        ("ms/frame", 8),
+        ("capped %", 8),
+        ("speed", 6),
+        ("contact %", 9),
     )
+    print(head + " ".join(f"{name:>{width}s}" for name, width in cols), flush=True)
     for robot_name in args.robots.split(","):
         for approach in args.approaches.split(","):
             r = run(robot_name, approach, args.scenario, takes, args.seconds, overrides)
