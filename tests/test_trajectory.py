@@ -63,7 +63,7 @@ def test_save_is_atomic_and_leaves_no_temporary(tmp_path, demo):
 @pytest.mark.parametrize(
     "content,pattern",
     [
-        (b"not a zip", "not a readable .npz"),
+        (b"not a zip", "not a readable trajectory .npz"),
         (None, "not an hlik trajectory"),
     ],
 )
