@@ -83,7 +83,7 @@ def load_trajectory(path: str | Path) -> Trajectory:
     except FileNotFoundError:
         raise TrajectoryFormatError(f"{path}: no such file") from None
     except (OSError, ValueError, zipfile.BadZipFile) as e:
-        hint = " (a recording? hlik evaluate reads the .npz written beside it)" if path.suffix == ".rrd" else ""
+        hint = " (a recording? evaluate the .npz written beside it)" if path.suffix == ".rrd" else ""
         reason = "not an .npz archive" if "pickle" in str(e) else str(e)
         raise TrajectoryFormatError(f"{path}: not a readable trajectory .npz file: {reason}{hint}") from None
     found = str(arrays.get("format", ""))
