@@ -24,6 +24,7 @@ from hlik.criteria.functional import target_terms
 from hlik.criteria.learned import Learned, learn
 from hlik.criteria.smoothness import smoothness_terms
 from hlik.problem.problem import Problem
+from hlik.robot.collision import CollisionPairs, collision_pairs, pair_distances
 from hlik.robot.model import Robot
 from hlik.robot.state import robot_state
 from hlik.solvers.base import ConfiguredSolver, SolverResult
@@ -50,6 +51,11 @@ class QPSettings:
         tol: A frame has converged when no joint moves more than this in a step, rad.
         max_step: Bound on any joint's change in one step, rad.
         solver: qpsolvers backend.
+        self_collision: Keep every pair of the robot's collision geoms ``collision_margin`` apart
+            (m), as linear inequalities on the step from their signed distances and gradients
+            (the velocity damper of mink's ``CollisionAvoidanceLimit``: a pair closer than
+            ``collision_detect`` may approach by at most ``collision_gain`` of its distance to the
+            margin per step).
     """
 
     criteria: tuple[str, ...] = ()
@@ -68,6 +74,10 @@ class QPSettings:
     tol: float = 1e-4
     max_step: float = 0.2
     solver: str = "daqp"
+    self_collision: bool = True
+    collision_margin: float = 0.01
+    collision_detect: float = 0.10
+    collision_gain: float = 0.5
 
 
 def build_terms(
@@ -124,9 +134,11 @@ def step(
     settings: QPSettings,
     data: mujoco.MjData | None = None,
     box: JointBox | None = None,
+    pairs: CollisionPairs | None = None,
 ) -> np.ndarray:
-    """One QP step from ``q`` (n,) within ``box`` (default: the joint limits): the joint change dq
-    (n,). Reuse ``data`` across steps."""
+    """One QP step from ``q`` (n,) within ``box`` (default: the joint limits), keeping the collision
+    ``pairs`` apart: the joint change dq (n,). Reuse ``data`` across steps."""
+    data = mujoco.MjData(robot.model) if data is None else data
     state = robot_state(robot, q, jacobians=bool(stack.sites), data=data, jacobian_sites=stack.sites)
     gradient = np.zeros(robot.dof)
     rows, errors = [], []
@@ -145,19 +157,34 @@ def step(
     lower, upper = (robot.lower, robot.upper) if box is None else (box.lower, box.upper)
     lb = np.minimum(np.maximum(lower - q, -settings.max_step), 0.0)  # q outside the box moves back
     ub = np.maximum(np.minimum(upper - q, settings.max_step), 0.0)
-    dq = _solve(hessian, gradient, lb, ub, settings.solver)
+    a_ineq, b_ineq = np.zeros((0, robot.dof)), np.zeros(0)
+    if pairs is not None and len(pairs):
+        mujoco.mj_comPos(robot.model, data)  # the kinematics of q are in data (robot_state)
+        dist, grad = pair_distances(robot, data, pairs, settings.collision_detect)
+        # d + grad dq >= margin - (1 - gain)(d - margin): approach by at most gain (d - margin)
+        a_ineq, b_ineq = -grad, settings.collision_gain * (dist - settings.collision_margin)
+    dq = _solve(hessian, gradient, lb, ub, settings.solver, a_ineq, b_ineq)
+    if dq is None and len(b_ineq):
+        # too close already and boxed in: at least come no closer
+        dq = _solve(hessian, gradient, lb, ub, settings.solver, a_ineq, np.maximum(b_ineq, 0.0))
     if dq is None or not np.all(np.isfinite(dq)):
         return np.zeros(robot.dof)  # infeasible or failed step: stay (limits hold, nothing NaN)
     return dq
 
 
-def _solve(hessian, gradient, lb, ub, solver: str) -> np.ndarray | None:
+def _solve(
+    hessian, gradient, lb, ub, solver: str, a_ineq: np.ndarray, b_ineq: np.ndarray
+) -> np.ndarray | None:
+    """min 1/2 x'Hx + g'x subject to lb <= x <= ub and a_ineq x <= b_ineq."""
     if solver != "daqp":
-        return qpsolvers.solve_qp(hessian, gradient, lb=lb, ub=ub, solver=solver)
-    # daqp directly: bounds-only problems need no constraint matrix, and qpsolvers' wrapping costs
-    # as much as the solve itself at this size
-    sense = np.zeros(len(lb), dtype=np.int32)
-    x, _, exitflag, _ = daqp.solve(hessian, gradient, np.zeros((0, len(lb))), ub, lb, sense)
+        g = a_ineq if len(b_ineq) else None
+        h = b_ineq if len(b_ineq) else None
+        return qpsolvers.solve_qp(hessian, gradient, G=g, h=h, lb=lb, ub=ub, solver=solver)
+    # daqp directly: qpsolvers' wrapping costs as much as the solve itself at this size
+    sense = np.zeros(len(lb) + len(b_ineq), dtype=np.int32)
+    upper = np.concatenate([ub, b_ineq])
+    lower = np.concatenate([lb, np.full(len(b_ineq), -1e30)])
+    x, _, exitflag, _ = daqp.solve(hessian, gradient, a_ineq, upper, lower, sense)
     return np.asarray(x) if exitflag > 0 else None
 
 
@@ -174,12 +201,13 @@ def solve(
     terms = Assembly(build_terms(robot, settings, learned), robot.dof, settings.damping)
     first = Assembly(build_terms(robot, settings, learned, scenario="pose"), robot.dof, settings.damping)
     data = mujoco.MjData(robot.model)
+    pairs = collision_pairs(robot) if settings.self_collision else None
 
     def solve_frame(k: int, frame: Sample, q: np.ndarray, box: JointBox) -> FrameResult:
         stack = first if k == 0 else terms
         max_iter = settings.max_iter * (10 if k == 0 else 1)
         return iterate(
-            lambda x: step(robot, stack, x, frame, settings, data, box), q, box, max_iter, settings.tol
+            lambda x: step(robot, stack, x, frame, settings, data, box, pairs), q, box, max_iter, settings.tol
         )
 
     return track(problem, solve_frame, progress)
