@@ -1,4 +1,4 @@
-"""Self-collision avoidance in the QP: a target inside the torso is refused, distances stay apart."""
+"""Self-collision avoidance in the QP and SLSQP: a target inside the torso is refused, pairs stay apart."""
 
 from __future__ import annotations
 
@@ -46,8 +46,9 @@ def test_collision_pairs_are_exactly_the_pairs_mujoco_lets_collide(robot):
         assert np.all(np.isfinite(grad))
 
 
+@pytest.mark.parametrize("solver", ["qp", "slsqp"])
 @pytest.mark.parametrize("name", ROBOTS)
-def test_a_target_inside_the_torso_is_refused(name):
+def test_a_target_inside_the_torso_is_refused(name, solver):
     r = load_robot(name)
     motion = demo_motion().crop(1.0, 1.3).resample(100.0)
     problem = build_problem(motion, r)

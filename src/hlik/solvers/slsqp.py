@@ -29,6 +29,7 @@ from hlik.criteria.learned import Learned, learn
 from hlik.criteria.smoothness import ACCELERATION, JERK, VELOCITY, Smoothness
 from hlik.errors import SettingsError
 from hlik.problem.problem import Problem
+from hlik.robot.collision import CollisionPairs, collision_pairs, pair_distances
 from hlik.robot.model import Robot
 from hlik.robot.state import robot_state
 from hlik.solvers.base import ConfiguredSolver, SolverResult
@@ -86,6 +87,9 @@ class SLSQPSettings:
         max_eval: Objective evaluations per frame at most (RelaxedIK's 100).
         first_eval: Evaluations at most for the first frame, which starts from the mapped human pose.
         fd_step: Forward-difference step, rad (``fd`` only).
+        self_collision: Keep the robot's collision geoms ``collision_margin`` apart (m), as NLopt
+            inequality constraints ``margin - d_i(q) <= 0`` on the ``collision_pairs`` closest pairs
+            within ``collision_detect`` (analytic gradients, :mod:`hlik.robot.collision`).
     """
 
     criteria: tuple[str, ...] = ()
@@ -105,6 +109,10 @@ class SLSQPSettings:
     max_eval: int = 100
     first_eval: int = 1000
     fd_step: float = 1e-7
+    self_collision: bool = True
+    collision_margin: float = 0.01
+    collision_detect: float = 0.10
+    collision_pairs: int = 4
 
     def __post_init__(self):
         if self.scenario not in ("pose", "relative"):
@@ -270,7 +278,33 @@ def make_optimizer(robot: Robot, settings: SLSQPSettings) -> nlopt.opt:
     opt.set_lower_bounds(np.asarray(robot.lower, dtype=float))
     opt.set_upper_bounds(np.asarray(robot.upper, dtype=float))
     opt.set_ftol_rel(settings.ftol_rel)
+    if settings.self_collision:
+        pairs = collision_pairs(robot)
+        if len(pairs):
+            constraint = _CollisionConstraint(robot, pairs, settings)
+            opt.add_inequality_mconstraint(constraint, np.full(settings.collision_pairs, 1e-4))
     return opt
+
+
+class _CollisionConstraint:
+    """NLopt's ``margin - d_i(q) <= 0`` for the k closest collision pairs (fewer: padded, met)."""
+
+    def __init__(self, robot: Robot, pairs: CollisionPairs, settings: SLSQPSettings):
+        self.robot, self.pairs, self.settings = robot, pairs, settings
+        self.data = mujoco.MjData(robot.model)
+
+    def __call__(self, result: np.ndarray, q: np.ndarray, grad: np.ndarray) -> None:
+        s, m = self.settings, self.robot.model
+        self.data.qpos[:] = q
+        mujoco.mj_kinematics(m, self.data)
+        mujoco.mj_comPos(m, self.data)
+        dist, jac = pair_distances(self.robot, self.data, self.pairs, s.collision_detect)
+        order = np.argsort(dist)[: s.collision_pairs]
+        result[:] = s.collision_margin - s.collision_detect  # absent pairs: far, met
+        result[: len(order)] = s.collision_margin - dist[order]
+        if grad.size:
+            grad[:] = 0.0
+            grad[: len(order)] = -jac[order]
 
 
 def solve_frame(
