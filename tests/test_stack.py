@@ -50,6 +50,7 @@ def test_with_criteria_replaces_the_list():
         ("[qp]\nposition_cost = 'high'", "qp.position_cost must be a number"),
         ("[qp]\nspeed = 1.0", "unknown key 'speed' in [qp]"),
         ("[gamma]\nSYN = true", "gamma.SYN must be a number"),
+        ("[qp]\nself_collision = 1", "qp.self_collision must be true or false"),
         ("colour = 'red'", "unknown key 'colour' in the top level"),
         ("scenario = ", "not valid TOML"),
     ],
@@ -114,3 +115,12 @@ def test_stack_jv_settings_are_the_defaults():
     from hlik.solvers.jv import JVSettings
 
     assert load_stack("ee_pose").settings("jv") == JVSettings()
+
+
+def test_switches_and_collision_settings_read_from_a_stack_file(tmp_path):
+    path = tmp_path / "s.toml"
+    text = "[qp]\nself_collision = false\ncollision_margin = 0.02\n[slsqp]\nself_collision = false\n"
+    path.write_text(text)
+    stack = load_stack(path)
+    assert stack.settings("qp").self_collision is False and stack.settings("qp").collision_margin == 0.02
+    assert stack.settings("slsqp").self_collision is False and stack.settings("jv").max_iter == 100

@@ -154,7 +154,11 @@ def _check_criteria(criteria: tuple[str, ...], where: object) -> None:
 
 
 def _value(value: object, default: object, path: Path, key: str) -> object:
-    """A setting of the default's kind: text for text settings, else a number."""
+    """A setting of the default's kind: text, true/false, or a number."""
+    if isinstance(default, bool):
+        if not isinstance(value, bool):
+            raise HlikError(f"{path}: {key} must be true or false, got {value!r}")
+        return value
     if isinstance(default, str):
         if not isinstance(value, str):
             raise HlikError(f"{path}: {key} must be text, got {value!r}")
