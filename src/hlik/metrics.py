@@ -16,12 +16,11 @@ from hlik.criteria.base import Sample
 from hlik.criteria.learned import Learned
 from hlik.criteria.smoothness import history
 from hlik.errors import SettingsError
-from hlik.problem.reference import HumanReference
+from hlik.human.motion import frame_period
+from hlik.problem.reference import HumanReference, reference_sample
 from hlik.robot.model import Robot, self_contacts
 from hlik.robot.state import robot_state
 from hlik.trajectory import Trajectory
-
-FUNCTIONAL = ("fJLA", "fPOS", "fORI", "fPOS_off", "fORI_off")
 
 
 @dataclass(frozen=True, eq=False)
@@ -76,16 +75,7 @@ class Evaluation:
 def trajectory_sample(traj: Trajectory, reference: HumanReference) -> Sample:
     """The :class:`Sample` of every frame of ``traj``: its targets, the human reference, the previous
     three configurations (the first frame repeated before the start) and the median frame period."""
-    dt = float(np.median(np.diff(traj.times))) if traj.n_frames > 1 else 0.01
-    return Sample(
-        traj.targets.pos,
-        traj.targets.rot,
-        reference.q_map,
-        reference.psi,
-        reference.manip,
-        history(traj.q),
-        dt,
-    )
+    return reference_sample(reference, traj.targets, slice(None), history(traj.q), frame_period(traj.times))
 
 
 def costs(traj: Trajectory, robot: Robot, learned: Learned) -> dict[str, np.ndarray]:
@@ -140,4 +130,4 @@ def collision_frames(traj: Trajectory, robot: Robot) -> np.ndarray:
     return np.array([bool(self_contacts(robot, q, data)) for q in traj.q], dtype=bool)
 
 
-__all__ = ["FUNCTIONAL", "Evaluation", "costs", "evaluate"]
+__all__ = ["Evaluation", "costs", "evaluate"]

@@ -127,6 +127,12 @@ class fORI(Criterion):  # noqa: N801
     cost, cost_gradient = fPOS.cost, fPOS.cost_gradient
 
 
+def _right_offset(state, sample: Sample) -> np.ndarray:
+    """(F, 3) where the target's relative pose puts the right hand, from the robot's left TCP."""
+    rel_pos, _ = relative_target(sample)
+    return np.einsum("fij,fj->fi", state.tcp_rot[:, 0], rel_pos)
+
+
 class fPOS_off(Criterion):  # noqa: N801
     """Paper Eq. 3: t_left + R_left t_rel - t_right (m); h its norm."""
 
@@ -134,13 +140,10 @@ class fPOS_off(Criterion):  # noqa: N801
     sites = (3,)
 
     def residual(self, state, sample):
-        rel_pos, _ = relative_target(sample)
-        offset = np.einsum("fij,fj->fi", state.tcp_rot[:, 0], rel_pos)
-        return state.tcp[:, 0] + offset - state.tcp[:, 1]
+        return state.tcp[:, 0] + _right_offset(state, sample) - state.tcp[:, 1]
 
     def jacobian(self, state, sample):
-        rel_pos, _ = relative_target(sample)
-        offset = np.einsum("fij,fj->fi", state.tcp_rot[:, 0], rel_pos)
+        offset = _right_offset(state, sample)
         jac = state.jac[:, :, 3]  # (F, 2, 6, n)
         # d(R_l t_rel) = omega_l x (R_l t_rel) = -[R_l t_rel]x omega_l
         return jac[:, 0, :3] - skew(offset) @ jac[:, 0, 3:] - jac[:, 1, :3]

@@ -26,6 +26,11 @@ ARM_JOINTS: dict[str, tuple[str, ...]] = {
 _MIRROR = np.diag([-1.0, 1.0, 1.0])  # reflection through the sagittal plane (x = right)
 
 
+def frame_period(times: np.ndarray) -> float:
+    """The median step of a time base (T,), s; 0.01 (100 Hz, the paper's rate) for a single frame."""
+    return float(np.median(np.diff(times))) if len(times) > 1 else 0.01
+
+
 @dataclass(frozen=True, eq=False)
 class ObjectMotion:
     """Pose of a scene object on the motion's time base.

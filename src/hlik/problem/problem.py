@@ -4,10 +4,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import numpy as np
-
 from hlik.human.kinematics import HumanKinematics, forward_kinematics
-from hlik.human.motion import HumanMotion
+from hlik.human.motion import HumanMotion, frame_period
 from hlik.problem.placement import Placement, shoulder_placement
 from hlik.problem.reference import HumanReference, human_reference
 from hlik.problem.targets import HandTargets, hand_targets
@@ -46,7 +44,6 @@ def build_problem(motion: HumanMotion, robot: Robot, placement: Placement | None
     :func:`~hlik.problem.placement.shoulder_placement`)."""
     human = forward_kinematics(motion)
     placement = placement or shoulder_placement(robot, human)
-    dt = float(np.median(np.diff(motion.times))) if motion.n_frames > 1 else 0.01
     return Problem(
         robot=robot,
         motion=motion,
@@ -54,5 +51,5 @@ def build_problem(motion: HumanMotion, robot: Robot, placement: Placement | None
         placement=placement,
         targets=hand_targets(human, placement),
         reference=human_reference(robot, motion, placement, human),
-        dt=dt,
+        dt=frame_period(motion.times),
     )

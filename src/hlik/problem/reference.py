@@ -12,11 +12,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from hlik.criteria.base import Sample
 from hlik.criteria.eea import forward_fill, swivel_angle
 from hlik.criteria.manipulability import human_manipulability
 from hlik.human.kinematics import HumanKinematics, forward_kinematics
 from hlik.human.motion import HumanMotion
 from hlik.problem.placement import Placement
+from hlik.problem.targets import HandTargets
 from hlik.robot.model import Robot, mapped_configuration
 
 
@@ -44,4 +46,20 @@ def human_reference(
         q_map=mapped_configuration(robot, motion),
         psi=forward_fill(swivel_angle(human.shoulder, human.elbow, human.wrist)),  # invariant to yaw
         manip=rot.T @ human_manipulability(motion) @ rot,
+    )
+
+
+def reference_sample(
+    reference: HumanReference, targets: HandTargets, rows: slice, history: np.ndarray, dt: float
+) -> Sample:
+    """The :class:`~hlik.criteria.base.Sample` of the frames ``rows``: their hand targets and human
+    reference, with ``history`` (F, 3, n), the three configurations before each, newest first."""
+    return Sample(
+        targets.pos[rows],
+        targets.rot[rows],
+        reference.q_map[rows],
+        reference.psi[rows],
+        reference.manip[rows],
+        history,
+        dt,
     )

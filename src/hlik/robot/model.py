@@ -251,7 +251,7 @@ def mapped_configuration(robot: Robot, motion: HumanMotion) -> np.ndarray:
     return q
 
 
-def joint_mapping(robot: Robot, motion: HumanMotion, *_: object) -> np.ndarray:
+def joint_mapping(robot: Robot, motion: HumanMotion) -> np.ndarray:
     """JM: :func:`mapped_configuration` clipped into the joint limits, as a robot controller would.
 
     Returns:

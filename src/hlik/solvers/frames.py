@@ -18,7 +18,7 @@ import numpy as np
 
 from hlik.criteria.base import Sample
 from hlik.problem.problem import Problem
-from hlik.problem.reference import HumanReference
+from hlik.problem.reference import HumanReference, reference_sample
 from hlik.problem.targets import HandTargets
 from hlik.robot.model import Robot
 from hlik.solvers.base import Diagnostics, SolverResult
@@ -58,8 +58,7 @@ def joint_box(robot: Robot, q_previous: np.ndarray | None, dt: float) -> JointBo
 
 def sample_at(ref: HumanReference, targets: HandTargets, k: int, history: np.ndarray, dt: float) -> Sample:
     """The one-row :class:`Sample` of frame ``k``; ``history`` (3, n): previous solutions, newest first."""
-    s = slice(k, k + 1)
-    return Sample(targets.pos[s], targets.rot[s], ref.q_map[s], ref.psi[s], ref.manip[s], history[None], dt)
+    return reference_sample(ref, targets, slice(k, k + 1), history[None], dt)
 
 
 def track(
