@@ -4,7 +4,8 @@ An approach is a solver with the criteria it adds, e.g. ``jm``, ``qp``, ``qp+SYN
 ``slsqp+SYN+HJA_r``. The stack (weights) is ``tasks/ee_pose.toml`` or ``tasks/relative_pose.toml``
 (``--scenario``). Each take is cropped to ``--seconds`` after skipping the first second.
 ``fPOS reach`` is the median over frames whose target lies within 95 % of the arm's length from the
-robot's shoulder (the frames the robot can reach); ``capped %`` the share of frames that ended at the
+robot's shoulder (the frames the robot can reach); ``--placement`` the rule placing the robot (``reach``,
+``shoulders``, ``X,Y,YAW``; default ``shoulders``); ``capped %`` the share of frames that ended at the
 solver's iteration cap; ``speed`` the largest joint speed over its limit in any step (any take) and
 ``contact %`` the share of frames in self-collision.
 
@@ -25,7 +26,9 @@ import numpy as np
 import hlik
 from hlik.criteria.functional import position_error, relative_errors
 from hlik.criteria.learned import learn
+from hlik.human.kinematics import forward_kinematics
 from hlik.metrics import evaluate
+from hlik.problem.placement import placement_from_spec
 from hlik.robot.state import robot_state
 from hlik.solvers import get_solver
 from hlik.solvers.stack_file import load_stack
@@ -43,7 +46,13 @@ def reachable(robot: hlik.Robot, traj: hlik.Trajectory) -> np.ndarray:
 
 
 def run(
-    robot_name: str, approach: str, scenario: str, takes: list[Path], seconds: float, overrides: dict
+    robot_name: str,
+    approach: str,
+    scenario: str,
+    takes: list[Path],
+    seconds: float,
+    overrides: dict,
+    placement: str = "shoulders",
 ) -> dict:
     robot = hlik.load_robot(robot_name)
     solver, *criteria = approach.split("+")
@@ -54,8 +63,9 @@ def run(
     for take in takes:
         motion = hlik.load_motion(take, rate=100.0)
         motion = motion.crop(1.0, min(1.0 + seconds, motion.duration))
+        where = placement_from_spec(placement, robot, forward_kinematics(motion))
         start = time.perf_counter()
-        traj = hlik.retarget(motion, robot, get_solver(solver, settings, learned))
+        traj = hlik.retarget(motion, robot, get_solver(solver, settings, learned), where)
         times.append((time.perf_counter() - start) / traj.n_frames)
         capped.append(~traj.diagnostics.converged)
         ev = evaluate(traj, robot, learned, scenario=scenario)
@@ -87,6 +97,7 @@ def main() -> None:
     parser.add_argument("--approaches", default=DEFAULT)
     parser.add_argument("--scenario", default="pose", choices=("pose", "relative"))
     parser.add_argument("--seconds", type=float, default=5.0)
+    parser.add_argument("--placement", default="shoulders", help="reach, shoulders or X,Y,YAW")
     parser.add_argument("--takes", type=int, default=8, help="use the first N takes")
     parser.add_argument("--set", action="append", default=[], help="override a setting: name=value")
     args = parser.parse_args()
@@ -94,7 +105,7 @@ def main() -> None:
     takes = sorted((DATA / "kit_bimanual").glob("*.xml"))[: args.takes]
     if not takes:
         raise SystemExit(f"{DATA / 'kit_bimanual'}: no takes (set HLIK_DATA)")
-    print(f"{len(takes)} takes x {args.seconds:g} s, scenario {args.scenario}")
+    print(f"{len(takes)} takes x {args.seconds:g} s, scenario {args.scenario}, placement {args.placement}")
     head = f"{'robot':11s} {'approach':18s} {'m_hl':>6s} {'m_f':>6s} {'m_hl,f':>6s} "
     cols = (
         ("fPOS cm", 8),
@@ -108,7 +119,7 @@ def main() -> None:
     print(head + " ".join(f"{name:>{width}s}" for name, width in cols), flush=True)
     for robot_name in args.robots.split(","):
         for approach in args.approaches.split(","):
-            r = run(robot_name, approach, args.scenario, takes, args.seconds, overrides)
+            r = run(robot_name, approach, args.scenario, takes, args.seconds, overrides, args.placement)
             print(
                 f"{robot_name:11s} {approach:18s} {r['m_hl']:6.3f} {r['m_f']:6.3f} {r['m_hl_f']:6.3f} "
                 f"{100 * r['fpos']:8.2f} {100 * r['freach']:8.2f} {100 * r['fpos_off']:7.2f} {r['ms']:8.2f} "

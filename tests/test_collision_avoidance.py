@@ -11,6 +11,8 @@ import pytest
 from conftest import ROBOTS, solve_problem
 from hlik import load_robot
 from hlik.human.demo import demo_motion
+from hlik.human.kinematics import forward_kinematics
+from hlik.problem.placement import shoulder_placement
 from hlik.problem.problem import build_problem
 from hlik.robot.collision import collision_pairs, pair_distances
 from hlik.robot.model import self_contacts
@@ -51,7 +53,7 @@ def test_collision_pairs_are_exactly_the_pairs_mujoco_lets_collide(robot):
 def test_a_target_inside_the_torso_is_refused(name, solver):
     r = load_robot(name)
     motion = demo_motion().crop(1.0, 1.3).resample(100.0)
-    problem = build_problem(motion, r)
+    problem = build_problem(motion, r, shoulder_placement(r, forward_kinematics(motion)))  # human-near torso
     inside = problem.targets.pos.copy()
     # the right hand's target moves into the chest (base frame): 25 cm below the shoulders' midpoint
     chest = robot_state(r, r.home).shoulder[0].mean(axis=0) + np.array([0.0, 0.0, -0.25])

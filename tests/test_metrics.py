@@ -13,10 +13,11 @@ from hlik import load_motion, load_robot, retarget
 from hlik.cli import app
 from hlik.criteria import registry, unified
 from hlik.criteria.joints import human_limits, mapped_pose
-from hlik.criteria.learned import cache_dir, learn
+from hlik.criteria.learned import learn
 from hlik.errors import HlikError
 from hlik.human.demo import demo_motion
 from hlik.metrics import evaluate
+from hlik.paths import cache_dir
 from hlik.robot.model import mapped_configuration
 
 TABLE_III = {  # name: (x0, inverse weight), paper Table III

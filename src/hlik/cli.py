@@ -25,6 +25,7 @@ app = typer.Typer(
     pretty_exceptions_enable=False,
 )
 console = Console()
+PLACEMENT = "reach"  # default of `hlik run --placement` (README: why)
 
 MotionArg = Annotated[
     Path | None, typer.Argument(help="MMM motion file (default: the bundled demo).", show_default=False)
@@ -79,6 +80,13 @@ def run(
     gradients: Annotated[
         str, typer.Option(help="slsqp: analytic gradients, or fd (finite differences, as the paper).")
     ] = "analytic",
+    placement: Annotated[
+        str,
+        typer.Option(
+            help="Where the robot stands: reach (reachability maps, the paper's), shoulders (on the "
+            "human's), or X,Y,YAW (world m, m, deg)."
+        ),
+    ] = PLACEMENT,
 ) -> None:
     """Retarget a motion to a robot; write a Rerun recording and the trajectory (.npz) beside it."""
     from rich.progress import (
@@ -91,8 +99,10 @@ def run(
     )
 
     from hlik.criteria.learned import learn
+    from hlik.human.kinematics import forward_kinematics
     from hlik.human.load import load_motion
     from hlik.metrics import evaluate as evaluate_trajectory
+    from hlik.problem.placement import placement_from_spec
     from hlik.recording import LAYOUTS, write_recording
     from hlik.retarget import retarget
     from hlik.robot.model import load_robot
@@ -135,6 +145,8 @@ def run(
             task = progress.add_task(f"reading {path.name}", total=None)
             m = load_motion(path, rate=rate or None)
             learned = learn(r, corpus)
+            progress.update(task, description=f"placing {r.title} ({placement})")
+            where = placement_from_spec(placement, r, forward_kinematics(m))
             progress.update(
                 task, description=f"retargeting to {r.title} ({tag})", total=m.n_frames, completed=0
             )
@@ -143,7 +155,7 @@ def run(
             settings = None if solver == "jm" else task_stack.settings(solver)
             if solver == "slsqp":
                 settings = replace(task_stack.settings("slsqp"), gradients=gradients)
-            traj = retarget(m, r, get_solver(solver, settings, learned, step))
+            traj = retarget(m, r, get_solver(solver, settings, learned, step), where)
             progress.update(task, completed=m.n_frames)
             solve_time = time.perf_counter() - start
             progress.update(task, description="evaluating the criteria")
@@ -184,6 +196,12 @@ def _run_summary(title: str, traj, motion, solve_time: float, rrd: Path, npz: Pa
     table.add_column(no_wrap=True)
     table.add_column(overflow="fold")
     table.add_row("frames", f"{traj.n_frames} over {motion.duration:.2f} s at {motion.rate:.1f} Hz")
+    p = traj.placement
+    table.add_row(
+        "placement",
+        f"{p.method}: base at ({p.translation[0]:.2f}, {p.translation[1]:.2f}, {p.translation[2]:.2f}) m, "
+        f"yaw {np.degrees(p.yaw):.0f}°",
+    )
     table.add_row("solve time", f"{solve_time:.2f} s ({1e3 * solve_time / traj.n_frames:.3f} ms/frame)")
     d = traj.diagnostics
     table.add_row(
@@ -252,8 +270,8 @@ def learn(
     corpus: CorpusOpt = None,
 ) -> None:
     """Fit (or load from the cache) synergies, the swivel regressor and lambda_R; print what was learned."""
-    from hlik.criteria.learned import cache_dir
     from hlik.criteria.learned import learn as learn_robot
+    from hlik.paths import cache_dir
     from hlik.robot.model import available_robots, load_robot
 
     paper = {"armar3": 7.25, "armar6": 8.76, "dual_panda": 4.7}

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 _PACKAGE = Path(__file__).resolve().parent
@@ -26,3 +27,11 @@ def tasks_dir() -> Path:
 def demo_motion_path() -> Path:
     """The bundled demonstration motion (MMM 2.0), the default of every command."""
     return _PACKAGE / "data" / "demo_pour_wipe.xml"
+
+
+def cache_dir() -> Path:
+    """Where fitted and sampled pieces are cached: ``$HLIK_CACHE``, else ``$XDG_CACHE_HOME/hlik``,
+    else ``~/.cache/hlik``."""
+    if "HLIK_CACHE" in os.environ:
+        return Path(os.environ["HLIK_CACHE"])
+    return Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "hlik"

@@ -116,6 +116,7 @@ def _to_arrays(t: Trajectory) -> dict[str, np.ndarray]:
         "target_pos": t.targets.pos,
         "target_rot": t.targets.rot,
         "base_pose": t.placement.matrix,
+        "base_method": np.array(t.placement.method),
         "ref.name": np.array(ref.name),
         "ref.times": ref.times,
         "ref.joint_names": np.array(ref.joint_names, dtype=str),
@@ -170,7 +171,7 @@ def _from_arrays(a: dict[str, np.ndarray]) -> Trajectory:
         tcp_pos=a["tcp_pos"],
         tcp_rot=a["tcp_rot"],
         targets=HandTargets(a["target_pos"], a["target_rot"]),
-        placement=Placement.from_matrix(a["base_pose"]),
+        placement=Placement.from_matrix(a["base_pose"], str(a.get("base_method", "given"))),
         motion=motion,
         reference=HumanReference(a["human.q_map"], a["human.psi"], a["human.manip"]),
         diagnostics=Diagnostics(

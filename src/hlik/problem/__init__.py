@@ -6,7 +6,7 @@
 - :mod:`~hlik.problem.problem`: :class:`Problem`, all of the above for one motion on one robot.
 """
 
-from hlik.problem.placement import Placement, shoulder_placement
+from hlik.problem.placement import Placement, placement_from_spec, reach_placement, shoulder_placement
 from hlik.problem.problem import Problem, build_problem
 from hlik.problem.reference import HumanReference, human_reference
 from hlik.problem.targets import HandTargets, hand_targets
@@ -19,5 +19,7 @@ __all__ = [
     "Placement",
     "hand_targets",
     "human_reference",
+    "placement_from_spec",
+    "reach_placement",
     "shoulder_placement",
 ]

@@ -1,8 +1,14 @@
 """Where the robot stands in the human's world: a rigid transform ``world <- robot base``.
 
-Until reachability-based placement exists, the robot is put so that the midpoint of its shoulders
-coincides with the human's at the first frame, facing the same way (heading from the shoulder line,
-so a slouch or a turned pelvis does not tilt the robot).
+Two rules, both upright (a yaw about the vertical) with the base at the height that puts the
+robot's shoulders at the human's:
+
+- ``shoulders``: the midpoint of the robot's shoulders on the human's at the first frame, facing the
+  same way (heading from the shoulder line, so a slouch or a turned pelvis does not tilt the robot).
+- ``reach`` (the paper's, Sec. IV-A): inversion of the robot's oriented reachability maps for every
+  left- and right-hand pose of the motion (Vahrenkamp et al. 2013; formulas.md §7): each candidate
+  base pose (x, y, yaw) scores the minimum map entry over all hand poses, the scores are mean
+  filtered, and the best candidate wins.
 """
 
 from __future__ import annotations
@@ -10,10 +16,15 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.ndimage import uniform_filter
 
+from hlik.errors import SettingsError
 from hlik.fk import site_poses
 from hlik.human.kinematics import HumanKinematics, shoulder_frame
 from hlik.robot.model import SIDES, Robot
+from hlik.robot.reachability import ReachabilityMap, reachability_map
+
+PLACEMENTS = ("reach", "shoulders")
 
 
 @dataclass(frozen=True, eq=False)
@@ -27,6 +38,7 @@ class Placement:
 
     rotation: np.ndarray
     translation: np.ndarray
+    method: str = "given"
 
     @property
     def matrix(self) -> np.ndarray:
@@ -37,9 +49,14 @@ class Placement:
         return m
 
     @classmethod
-    def from_matrix(cls, matrix: np.ndarray) -> Placement:
+    def from_matrix(cls, matrix: np.ndarray, method: str = "given") -> Placement:
         matrix = np.asarray(matrix, dtype=float)
-        return cls(matrix[:3, :3].copy(), matrix[:3, 3].copy())
+        return cls(matrix[:3, :3].copy(), matrix[:3, 3].copy(), method)
+
+    @property
+    def yaw(self) -> float:
+        """Heading of the base x axis about the world z axis, rad."""
+        return float(np.arctan2(self.rotation[1, 0], self.rotation[0, 0]))
 
     def to_world(self, pos: np.ndarray, rot: np.ndarray | None = None):
         """Base-frame positions (..., 3) (and rotations (..., 3, 3)) expressed in the world."""
@@ -59,4 +76,115 @@ def shoulder_placement(robot: Robot, human: HumanKinematics) -> Placement:
     r_rob, o_rob = shoulder_frame(pos[0, 0], pos[0, 1])
     r_hum, o_hum = shoulder_frame(human.shoulder[0, 0], human.shoulder[0, 1])
     rotation = r_hum @ r_rob.T
-    return Placement(rotation, o_hum - rotation @ o_rob)
+    return Placement(rotation, o_hum - rotation @ o_rob, "shoulders")
+
+
+@dataclass(frozen=True)
+class ReachSearch:
+    """The candidate grid of :func:`reach_placement`, around the motion: offsets of the base along
+    the axes of the shoulder placement, from the mean hand position, and yaws from its heading.
+
+    Attributes:
+        step: Grid step of the base position, m.
+        radius: Half-width of the square of base positions, m.
+        yaw_step: Grid step of the base yaw, rad (the whole circle is searched).
+        n_targets: Frames of the motion whose hand poses are inverted (evenly spaced; all if fewer).
+        filter_size: Width of the mean filter in grid cells (x, y and yaw).
+    """
+
+    step: float = 0.05
+    radius: float = 1.2
+    yaw_step: float = np.radians(10.0)
+    n_targets: int = 100
+    filter_size: int = 3
+
+
+def reach_placement(
+    robot: Robot,
+    human: HumanKinematics,
+    reach: ReachabilityMap | None = None,
+    search: ReachSearch = ReachSearch(),
+) -> Placement:
+    """The paper's placement: the base pose where the worst-reachable hand pose of the motion is
+    best reachable (minimum over both hands' ORM entries, mean filtered, arg-max).
+
+    Where no candidate reaches every hand pose, the candidate reaching the largest share of them
+    wins. The search is carried in the motion's own frame, so moving or turning the whole motion
+    moves the placement with it.
+    """
+    score, offsets, yaws, frame = reach_scores(robot, human, reach, search)
+    k, i = np.unravel_index(int(np.argmax(score)), score.shape)
+    r0, c0 = frame
+    rotation = _rot_z(yaws[k]) @ r0
+    return Placement(rotation, c0 + r0 @ offsets[i], "reach")
+
+
+def reach_scores(
+    robot: Robot,
+    human: HumanKinematics,
+    reach: ReachabilityMap | None = None,
+    search: ReachSearch = ReachSearch(),
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, tuple[np.ndarray, np.ndarray]]:
+    """Filtered placement scores over the candidate grid of ``search``.
+
+    Returns:
+        (n_yaw, n_xy) scores; (n_xy, 3) base offsets in the search frame, m; (n_yaw,) yaws, rad;
+        and the search frame: (3, 3) rotation (the shoulder placement's) and (3,) origin (mean hand
+        position, at the shoulder placement's base height).
+    """
+    reach = reach or reachability_map(robot)
+    start = shoulder_placement(robot, human)
+    r0 = start.rotation
+    frames = np.unique(np.linspace(0, len(human.tcp_pos) - 1, search.n_targets).astype(int))
+    pos, rot = human.tcp_pos[frames], human.tcp_rot[frames]  # (N, 2, 3), (N, 2, 3, 3)
+    c0 = np.array([*pos.reshape(-1, 3).mean(axis=0)[:2], start.translation[2]])
+    g = np.arange(-search.radius, search.radius + 1e-9, search.step)
+    gx, gy = np.meshgrid(g, g, indexing="ij")
+    offsets = np.stack([gx.ravel(), gy.ravel(), np.zeros(gx.size)], axis=-1)
+    yaws = np.arange(0.0, 2 * np.pi - 1e-9, search.yaw_step)
+    worst = np.empty((len(yaws), len(offsets)))
+    share = np.empty_like(worst)
+    for k, yaw in enumerate(yaws):
+        r = _rot_z(yaw) @ r0  # world <- candidate base
+        local = (pos - c0) @ r  # hand positions relative to the search origin, candidate axes
+        base_rot = np.einsum("ji,nsjk->nsik", r, rot)
+        shift = offsets @ _rot_z(yaw)  # candidate origin in its own axes: Rz(-yaw) offset
+        entries = np.concatenate(
+            [reach.lookup(s, local[None, :, s] - shift[:, None], base_rot[None, :, s]) for s in range(2)],
+            axis=1,
+        )
+        worst[k] = entries.min(axis=1)
+        share[k] = (entries > 0).mean(axis=1)
+    score = worst if worst.max() > 0 else share  # nothing reaches every pose: reach the most
+    n = len(g)
+    score = uniform_filter(
+        score.reshape(len(yaws), n, n), search.filter_size, mode=("wrap", "nearest", "nearest")
+    )
+    return score.reshape(len(yaws), -1), offsets, yaws, (r0, c0)
+
+
+def placement_from_spec(spec: str, robot: Robot, human: HumanKinematics) -> Placement:
+    """The placement named by ``spec``: ``reach``, ``shoulders`` or ``X,Y,YAW`` (world metres and
+    degrees about z; the base height puts the shoulders at the human's).
+
+    Raises:
+        SettingsError: anything else.
+    """
+    spec = spec.strip()
+    if spec == "reach":
+        return reach_placement(robot, human)
+    if spec == "shoulders":
+        return shoulder_placement(robot, human)
+    try:
+        x, y, yaw = (float(v) for v in spec.split(","))
+    except ValueError:
+        raise SettingsError(
+            f"placement {spec!r}: expected one of {', '.join(PLACEMENTS)} or X,Y,YAW (m, m, deg)"
+        ) from None
+    height = shoulder_placement(robot, human).translation[2]
+    return Placement(_rot_z(np.radians(yaw)), np.array([x, y, height]), spec)
+
+
+def _rot_z(angle: float) -> np.ndarray:
+    c, s = np.cos(angle), np.sin(angle)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])

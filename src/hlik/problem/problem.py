@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 from hlik.human.kinematics import HumanKinematics, forward_kinematics
 from hlik.human.motion import HumanMotion, frame_period
-from hlik.problem.placement import Placement, shoulder_placement
+from hlik.problem.placement import Placement, reach_placement
 from hlik.problem.reference import HumanReference, human_reference
 from hlik.problem.targets import HandTargets, hand_targets
 from hlik.robot.model import Robot
@@ -40,10 +40,10 @@ class Problem:
 
 
 def build_problem(motion: HumanMotion, robot: Robot, placement: Placement | None = None) -> Problem:
-    """The problem of ``motion`` on ``robot``, placed at ``placement`` (default: shoulders aligned,
-    :func:`~hlik.problem.placement.shoulder_placement`)."""
+    """The problem of ``motion`` on ``robot``, placed at ``placement`` (default: by reachability,
+    :func:`~hlik.problem.placement.reach_placement`, as the paper)."""
     human = forward_kinematics(motion)
-    placement = placement or shoulder_placement(robot, human)
+    placement = placement or reach_placement(robot, human)
     return Problem(
         robot=robot,
         motion=motion,

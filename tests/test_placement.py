@@ -1,0 +1,89 @@
+"""Placement by reachability inversion (paper Sec. IV-A): where the hand poses are reachable, and
+covariant with the motion."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from conftest import ROBOTS, solve_problem
+from hlik.errors import SettingsError
+from hlik.fk import site_poses
+from hlik.human.demo import demo_motion
+from hlik.human.kinematics import HumanKinematics, forward_kinematics
+from hlik.human.load import load_motion
+from hlik.problem.placement import Placement, placement_from_spec, reach_placement, shoulder_placement
+from hlik.problem.targets import HandTargets
+from hlik.robot.model import SIDES, joint_mapping, load_robot
+from hlik.robot.reachability import reachability_map
+from hlik.robot.state import robot_state
+from hlik.solvers import qp
+
+
+def _rot_z(angle: float) -> np.ndarray:
+    c, s = np.cos(angle), np.sin(angle)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def test_reach_placement_moves_and_turns_with_the_motion(takes):
+    robot = load_robot("armar6")
+    motion = load_motion(takes[1])
+    turn, shift = _rot_z(2.3), np.array([1.7, -3.1, 0.0])
+    moved = replace(
+        motion,
+        root_position=motion.root_position @ turn.T + shift,
+        root_rotation=turn @ motion.root_rotation,
+    )
+    here = reach_placement(robot, forward_kinematics(motion))
+    there = reach_placement(robot, forward_kinematics(moved))
+    assert here.method == there.method == "reach"
+    np.testing.assert_allclose(there.rotation, turn @ here.rotation, atol=1e-9)
+    np.testing.assert_allclose(there.translation, turn @ here.translation + shift, atol=1e-9)
+
+
+@pytest.mark.parametrize("name", ROBOTS)
+def test_reach_placement_finds_a_base_where_every_hand_pose_is_reachable(name):
+    """Hand poses the robot itself makes from a base pose far from the human's shoulders: the search
+    finds a base from which the QP reaches all of them, and the map has an entry for each."""
+    robot = load_robot(name)
+    motion = demo_motion().crop(1.0, 3.0).resample(10.0)
+    state = robot_state(robot, joint_mapping(robot, motion))
+    truth = Placement(_rot_z(-0.8), np.array([0.9, 0.6, 0.0]))
+    world = [truth.to_world(p) for p in (state.shoulder, state.elbow, state.wrist, state.tcp)]
+    hands = HumanKinematics(*world, truth.rotation @ state.tcp_rot)
+    found = reach_placement(robot, hands)
+    targets = HandTargets(*found.to_base(hands.tcp_pos, hands.tcp_rot))
+    reach = reachability_map(robot)
+    for side in range(2):
+        assert np.all(reach.lookup(side, targets.pos[:, side], targets.rot[:, side]) > 0)
+    q, _ = solve_problem(qp.solve, robot, motion, targets, found, qp.QPSettings(max_iter=50))
+    tcp = robot_state(robot, q).tcp
+    assert np.median(np.linalg.norm(tcp - targets.pos, axis=-1)) < 0.01
+
+
+@pytest.mark.parametrize("name", ROBOTS)
+def test_shoulder_placement_matches_shoulder_midpoints_and_heading(name, takes):
+    r = load_robot(name)
+    human = forward_kinematics(load_motion(takes[1]))
+    placement = shoulder_placement(r, human)
+    ids = np.array([r.site_id(s, "shoulder") for s in SIDES])
+    shoulders, _ = site_poses(r.model, r.home[None], ids)
+    world = placement.to_world(shoulders[0])
+    np.testing.assert_allclose(world.mean(0), human.shoulder[0].mean(0), atol=1e-9)
+    lateral = lambda p: (p[1] - p[0])[:2] / np.linalg.norm((p[1] - p[0])[:2])  # noqa: E731
+    np.testing.assert_allclose(lateral(world), lateral(human.shoulder[0]), atol=1e-9)
+    np.testing.assert_allclose(placement.rotation[:, 2], [0, 0, 1], atol=1e-12)  # stays upright
+
+
+def test_placement_spec():
+    robot = load_robot("dual_panda")
+    human = forward_kinematics(demo_motion().crop(0.0, 1.0))
+    given = placement_from_spec("0.5,-1,90", robot, human)
+    np.testing.assert_allclose(given.translation[:2], [0.5, -1.0])
+    assert given.yaw == pytest.approx(np.pi / 2)
+    assert given.translation[2] == pytest.approx(shoulder_placement(robot, human).translation[2])
+    assert placement_from_spec("shoulders", robot, human).method == "shoulders"
+    with pytest.raises(SettingsError, match="X,Y,YAW"):
+        placement_from_spec("0.5,1", robot, human)
