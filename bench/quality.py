@@ -26,7 +26,6 @@ import numpy as np
 import hlik
 from hlik.criteria.functional import position_error, relative_errors
 from hlik.criteria.learned import learn
-from hlik.human.kinematics import forward_kinematics
 from hlik.metrics import evaluate
 from hlik.problem.placement import placement_from_spec
 from hlik.robot.state import robot_state
@@ -63,7 +62,7 @@ def run(
     for take in takes:
         motion = hlik.load_motion(take, rate=100.0)
         motion = motion.crop(1.0, min(1.0 + seconds, motion.duration))
-        where = placement_from_spec(placement, robot, forward_kinematics(motion))
+        where = placement_from_spec(placement, robot, motion)
         start = time.perf_counter()
         traj = hlik.retarget(motion, robot, get_solver(solver, settings, learned), where)
         times.append((time.perf_counter() - start) / traj.n_frames)

@@ -14,7 +14,13 @@ from hlik.fk import site_poses
 from hlik.human.demo import demo_motion
 from hlik.human.kinematics import HumanKinematics, forward_kinematics
 from hlik.human.load import load_motion
-from hlik.problem.placement import Placement, placement_from_spec, reach_placement, shoulder_placement
+from hlik.problem.placement import (
+    Placement,
+    mapped_placement,
+    placement_from_spec,
+    reach_placement,
+    shoulder_placement,
+)
 from hlik.problem.targets import HandTargets
 from hlik.robot.model import SIDES, joint_mapping, load_robot
 from hlik.robot.reachability import reachability_map
@@ -64,6 +70,18 @@ def test_reach_placement_finds_a_base_where_every_hand_pose_is_reachable(name):
 
 
 @pytest.mark.parametrize("name", ROBOTS)
+def test_mapped_placement_recovers_the_base_that_put_the_mapped_hands_there(name):
+    robot = load_robot(name)
+    motion = demo_motion().crop(1.0, 3.0).resample(20.0)
+    state = robot_state(robot, joint_mapping(robot, motion))
+    truth = Placement(_rot_z(2.5), np.array([-0.4, 1.3, 0.0]))
+    world = [truth.to_world(p) for p in (state.shoulder, state.elbow, state.wrist, state.tcp)]
+    found = mapped_placement(robot, motion, HumanKinematics(*world, truth.rotation @ state.tcp_rot))
+    np.testing.assert_allclose(found.rotation, truth.rotation, atol=1e-9)
+    np.testing.assert_allclose(found.translation[:2], truth.translation[:2], atol=1e-9)
+
+
+@pytest.mark.parametrize("name", ROBOTS)
 def test_shoulder_placement_matches_shoulder_midpoints_and_heading(name, takes):
     r = load_robot(name)
     human = forward_kinematics(load_motion(takes[1]))
@@ -79,11 +97,12 @@ def test_shoulder_placement_matches_shoulder_midpoints_and_heading(name, takes):
 
 def test_placement_spec():
     robot = load_robot("dual_panda")
-    human = forward_kinematics(demo_motion().crop(0.0, 1.0))
-    given = placement_from_spec("0.5,-1,90", robot, human)
+    motion = demo_motion().crop(0.0, 1.0)
+    human = forward_kinematics(motion)
+    given = placement_from_spec("0.5,-1,90", robot, motion)
     np.testing.assert_allclose(given.translation[:2], [0.5, -1.0])
     assert given.yaw == pytest.approx(np.pi / 2)
     assert given.translation[2] == pytest.approx(shoulder_placement(robot, human).translation[2])
-    assert placement_from_spec("shoulders", robot, human).method == "shoulders"
+    assert placement_from_spec("shoulders", robot, motion).method == "shoulders"
     with pytest.raises(SettingsError, match="X,Y,YAW"):
-        placement_from_spec("0.5,1", robot, human)
+        placement_from_spec("0.5,1", robot, motion)

@@ -99,7 +99,6 @@ def run(
     )
 
     from hlik.criteria.learned import learn
-    from hlik.human.kinematics import forward_kinematics
     from hlik.human.load import load_motion
     from hlik.metrics import evaluate as evaluate_trajectory
     from hlik.problem.placement import placement_from_spec
@@ -146,7 +145,7 @@ def run(
             m = load_motion(path, rate=rate or None)
             learned = learn(r, corpus)
             progress.update(task, description=f"placing {r.title} ({placement})")
-            where = placement_from_spec(placement, r, forward_kinematics(m))
+            where = placement_from_spec(placement, r, m)
             progress.update(
                 task, description=f"retargeting to {r.title} ({tag})", total=m.n_frames, completed=0
             )

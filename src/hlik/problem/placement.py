@@ -20,11 +20,12 @@ from scipy.ndimage import uniform_filter
 
 from hlik.errors import SettingsError
 from hlik.fk import site_poses
-from hlik.human.kinematics import HumanKinematics, shoulder_frame
-from hlik.robot.model import SIDES, Robot
+from hlik.human.kinematics import HumanKinematics, forward_kinematics, shoulder_frame
+from hlik.human.motion import HumanMotion
+from hlik.robot.model import SIDES, Robot, joint_mapping, tcp_poses
 from hlik.robot.reachability import ReachabilityMap, reachability_map
 
-PLACEMENTS = ("reach", "shoulders")
+PLACEMENTS = ("reach", "mapped", "shoulders")
 
 
 @dataclass(frozen=True, eq=False)
@@ -163,16 +164,41 @@ def reach_scores(
     return score.reshape(len(yaws), -1), offsets, yaws, (r0, c0)
 
 
-def placement_from_spec(spec: str, robot: Robot, human: HumanKinematics) -> Placement:
-    """The placement named by ``spec``: ``reach``, ``shoulders`` or ``X,Y,YAW`` (world metres and
-    degrees about z; the base height puts the shoulders at the human's).
+def mapped_placement(robot: Robot, motion: HumanMotion, human: HumanKinematics | None = None) -> Placement:
+    """Where the human's own joint angles put the robot's hands on the human's: the upright base
+    pose that best fits the TCP positions of the joint mapping (JM, base frame) onto the human hand
+    positions (world) in the least-squares sense (2D Procrustes over all frames and both hands).
+
+    The base height puts the shoulders at the human's, as the other rules do.
+    """
+    human = human or forward_kinematics(motion)
+    mapped, _ = tcp_poses(robot, joint_mapping(robot, motion))
+    a = mapped.reshape(-1, 3)[:, :2]
+    b = human.tcp_pos.reshape(-1, 3)[:, :2]
+    a_mean, b_mean = a.mean(axis=0), b.mean(axis=0)
+    h = (a - a_mean).T @ (b - b_mean)
+    yaw = np.arctan2(h[0, 1] - h[1, 0], h[0, 0] + h[1, 1])
+    rotation = _rot_z(yaw)
+    xy = b_mean - rotation[:2, :2] @ a_mean
+    height = shoulder_placement(robot, human).translation[2]
+    return Placement(rotation, np.array([xy[0], xy[1], height]), "mapped")
+
+
+def placement_from_spec(
+    spec: str, robot: Robot, motion: HumanMotion, human: HumanKinematics | None = None
+) -> Placement:
+    """The placement named by ``spec``: ``reach``, ``mapped``, ``shoulders`` or ``X,Y,YAW`` (world
+    metres and degrees about z; the base height puts the shoulders at the human's).
 
     Raises:
         SettingsError: anything else.
     """
     spec = spec.strip()
+    human = human or forward_kinematics(motion)
     if spec == "reach":
         return reach_placement(robot, human)
+    if spec == "mapped":
+        return mapped_placement(robot, motion, human)
     if spec == "shoulders":
         return shoulder_placement(robot, human)
     try:
