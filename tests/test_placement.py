@@ -9,11 +9,13 @@ import numpy as np
 import pytest
 
 from conftest import ROBOTS, solve_problem
+from hlik.criteria.learned import learn
 from hlik.errors import SettingsError
 from hlik.fk import site_poses
 from hlik.human.demo import demo_motion
 from hlik.human.kinematics import HumanKinematics, forward_kinematics
 from hlik.human.load import load_motion
+from hlik.placement_search import optimize_placement
 from hlik.problem.placement import (
     Placement,
     mapped_placement,
@@ -106,3 +108,19 @@ def test_placement_spec():
     assert placement_from_spec("shoulders", robot, motion).method == "shoulders"
     with pytest.raises(SettingsError, match="X,Y,YAW"):
         placement_from_spec("0.5,1", robot, motion)
+
+
+def test_optimize_keeps_the_candidate_with_the_best_unified_metric():
+    robot = load_robot("armar3")
+    motion = demo_motion().crop(1.0, 2.0)
+    learned = learn(robot)
+    solver = qp.qp_solver(qp.QPSettings(max_iter=5), learned)
+    best, tried = optimize_placement(motion, robot, solver, learned, frames=10)
+    human = forward_kinematics(motion)
+    assert [c.name for c in tried] == ["reach", "reach+1/3", "reach+2/3", "mapped", "shoulders"]
+    np.testing.assert_allclose(tried[0].placement.matrix, reach_placement(robot, human).matrix)
+    np.testing.assert_allclose(tried[3].placement.matrix, mapped_placement(robot, motion, human).matrix)
+    winner = max(tried, key=lambda c: c.m_hl_f)
+    assert best.method == "optimize"
+    np.testing.assert_allclose(best.matrix, winner.placement.matrix)
+    assert all(np.isfinite(c.m_hl_f) for c in tried)

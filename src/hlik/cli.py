@@ -83,8 +83,9 @@ def run(
     placement: Annotated[
         str,
         typer.Option(
-            help="Where the robot stands: reach (reachability maps, the paper's), shoulders (on the "
-            "human's), or X,Y,YAW (world m, m, deg)."
+            help="Where the robot stands: reach (reachability maps, the paper's), mapped (where the "
+            "mapped joint angles reach the hands), optimize (the best of those by m_hl,f of a fast QP "
+            "run), shoulders (on the human's), or X,Y,YAW (world m, m, deg)."
         ),
     ] = PLACEMENT,
 ) -> None:
@@ -101,6 +102,7 @@ def run(
     from hlik.criteria.learned import learn
     from hlik.human.load import load_motion
     from hlik.metrics import evaluate as evaluate_trajectory
+    from hlik.placement_search import optimize_placement
     from hlik.problem.placement import placement_from_spec
     from hlik.recording import LAYOUTS, write_recording
     from hlik.retarget import retarget
@@ -145,7 +147,12 @@ def run(
             m = load_motion(path, rate=rate or None)
             learned = learn(r, corpus)
             progress.update(task, description=f"placing {r.title} ({placement})")
-            where = placement_from_spec(placement, r, m)
+            tried: list = []
+            if placement == "optimize":
+                fast = get_solver("qp", task_stack.settings("qp"), learned)
+                where, tried = optimize_placement(m, r, fast, learned, scenario)
+            else:
+                where = placement_from_spec(placement, r, m)
             progress.update(
                 task, description=f"retargeting to {r.title} ({tag})", total=m.n_frames, completed=0
             )
@@ -167,6 +174,9 @@ def run(
     except OSError as e:
         _fail(HlikError(f"{e.filename or rrd}: cannot write ({e.strerror or e})"))
     console.print(_run_summary(path.stem, traj, m, solve_time, rrd, npz, ev))
+    if tried:
+        scores = ", ".join(f"{c.name} {c.m_hl_f:.3f}" for c in tried)
+        console.print(f"placement optimize (m_hl,f of a short qp run): {scores}")
     console.print(
         f"human likeness m_hl = {ev.m_hl:.3f}, functional m_f = {ev.m_f:.3f} ({scenario}), "
         f"m_hl,f = {ev.m_hl_f:.3f}   (details: hlik evaluate {npz})"
