@@ -9,6 +9,7 @@ from scipy.spatial.transform import Rotation
 import hlik
 from hlik.criteria.angles import wrap
 from hlik.criteria.eea import (
+    EULER,
     SwivelPredictor,
     eea_cost,
     eea_r_target,
@@ -149,7 +150,7 @@ def test_forward_fill():
 def printed_formula(p, rot):
     """Zanchettin's printed Ψ_human for an arm-frame hand position and orientation."""
     x, y, z = p
-    th, ph, ps = Rotation.from_matrix(rot).as_euler("xyz")
+    th, ph, ps = Rotation.from_matrix(rot).as_euler(EULER)
     return (
         1.39
         - 0.88 * np.cos(th + 0.30)

@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 import numpy as np
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
+from hlik.criteria.eea import SwivelPredictor, eea_cost, eea_residual, swivel_angle, swivel_weight
 from hlik.criteria.functional import rotation_vector
 from hlik.criteria.unified import logistic
 from hlik.human.demo import demo_motion
@@ -67,3 +68,72 @@ def test_mmm_files_round_trip_exactly_at_any_time_base(tmp_path_factory, start, 
     np.testing.assert_array_equal(back.times, motion.times)
     np.testing.assert_array_equal(back.joints, motion.joints)
     np.testing.assert_allclose(back.root_position, motion.root_position, atol=1e-12)
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    return v / np.linalg.norm(v)
+
+
+@FAST
+@given(
+    axis=vectors.filter(lambda v: np.linalg.norm(v) > 1e-2),
+    side=vectors.filter(lambda v: np.linalg.norm(v) > 1e-2),
+    offset=st.floats(-0.03, 0.03),
+    target=st.floats(0.0, 2 * np.pi),
+)
+def test_eea_cost_is_continuous_through_its_singularities(axis, side, offset, target):
+    """Each arm's EEA cost is Lipschitz in the elbow position, also as the elbow crosses the
+    shoulder -> wrist axis (where Ψ flips by π) and where that axis is vertical: the residual fades
+    out there instead of switching at the exact singularity."""
+    n = _unit(axis)
+    u = side - (side @ n) * n
+    assume(np.linalg.norm(u) > 1e-2)
+    u = _unit(u)
+    shoulder, wrist = np.zeros(3), 0.6 * n
+    step = 1e-5 * u  # across the axis, the direction in which Ψ turns fastest
+
+    def cost(elbow: np.ndarray) -> float:
+        arm = lambda p: np.stack([p * [-1.0, 1.0, 1.0], p])  # noqa: E731 - both arms, mirrored
+        s, e, w = arm(shoulder), arm(elbow), arm(wrist)
+        psi = np.nan_to_num(swivel_angle(s, e, w))
+        return float(eea_cost(swivel_weight(s, e, w) * eea_residual(psi, np.full(2, target))))
+
+    elbow = 0.5 * wrist + offset * u
+    upper = np.linalg.norm(elbow - shoulder)
+    assert abs(cost(elbow + step) - cost(elbow)) <= 40.0 * 1e-5 / upper
+
+
+# hand orientations of bimanual table work (columns: palm normal, z x palm normal, approach), right
+# arm frame: palm down / medial / up, approach forward or down
+WORKING_HANDS = [
+    np.array(columns).T
+    for columns in (
+        ((0, 0, -1), (-1, 0, 0), (0, 1, 0)),
+        ((-1, 0, 0), (0, 0, 1), (0, 1, 0)),
+        ((-1, 0, 0), (0, 1, 0), (0, 0, -1)),
+        ((0, 0, 1), (1, 0, 0), (0, 1, 0)),
+    )
+]
+
+
+@FAST
+@given(
+    hand=st.sampled_from(WORKING_HANDS),
+    yaw=st.floats(-0.8, 0.8),
+    tilt=st.lists(st.floats(-0.25, 0.25), min_size=3, max_size=3).map(np.array),
+    turn=vectors.filter(lambda v: np.linalg.norm(v) > 1e-3),
+)
+def test_swivel_prediction_features_are_smooth_where_hands_work(hand, yaw, tilt, turn):
+    """The Ψ_human regressors are Lipschitz in the hand orientation around the orientations of
+    table work (palm down included, where roll-pitch-yaw angles lock and swing by up to π from one
+    frame to the next), as long as the palm normal stays 30° from the forward axis (the gimbal lock
+    of :data:`~hlik.criteria.eea.EULER`)."""
+    rot = Rotation.from_rotvec([0.0, 0.0, yaw]) * Rotation.from_matrix(hand) * Rotation.from_rotvec(tilt)
+    assume(abs(rot.as_matrix()[1, 0]) <= np.cos(np.radians(30.0)))
+    delta = Rotation.from_rotvec(1e-6 * _unit(turn))
+    shoulder = np.array([[-0.2, 0.0, 1.4], [0.2, 0.0, 1.4]])
+    tcp = shoulder + [[-0.1, 0.4, -0.3], [0.1, 0.4, -0.3]]
+    feats = [
+        SwivelPredictor.features(shoulder, tcp, np.stack([r.as_matrix()] * 2)) for r in (rot, delta * rot)
+    ]
+    assert np.max(np.abs(feats[1] - feats[0])) <= 10.0 * 1e-6

@@ -140,6 +140,10 @@ class Criterion(Term):
     # Set where the solvers minimise another form than h (a smooth stand-in); it says which. They
     # still report h.
     solver_form: ClassVar[str | None] = None
+    # True where h measures the motion since the previous frames (MIS, MJE). The first frame has
+    # none (its history is itself, h = 0 whatever q), so the solvers leave the criterion out there
+    # rather than pull the first pose toward the pose they start from.
+    motion: ClassVar[bool] = False
 
     def __init__(self, robot: object = None, learned: object = None):
         """Criteria that need neither the robot nor the learned pieces take them and ignore them."""

@@ -9,13 +9,21 @@ vertical plane through shoulder and wrist: 0 = elbow straight above the axis, π
 
 Ψ is undefined when the arm is stretched (the elbow lies on the shoulder -> wrist axis) or when
 that axis is vertical; :func:`swivel_angle` returns NaN there and callers reuse the last valid
-value (:func:`forward_fill`). The cost of a NaN residual is NaN.
+value (:func:`forward_fill`). The cost of a NaN residual is NaN. Near either, Ψ is defined but
+meaningless: a millimetre of elbow motion turns it by up to π (a Panda arm stretched at its elbow
+limit crosses the axis and Ψ flips by π from one frame to the next), so the EEA residual is
+weighted by :func:`swivel_weight`, which fades it to 0 there instead of switching at the exact
+singularity.
 
 Ψ_human (formulas.md §1.2) is Zanchettin's regression on the 6D hand pose, made linear in its
 coefficients (:class:`SwivelPredictor`). Decisions: the hand orientation angles (θ, φ, ψ) are
-``Rotation.from_matrix(R_arm).as_euler("xyz")`` (extrinsic roll-pitch-yaw) of the TCP orientation
-in the arm frame; the published Euler convention is unknown, which is one reason to refit the
-coefficients on MMM data (:meth:`SwivelPredictor.fit`) instead of using the printed ones. The left
+``Rotation.from_matrix(R_arm).as_euler(EULER)`` of the TCP orientation in the arm frame, extrinsic
+x, z, y; the published Euler convention is unknown, which is one reason to refit the coefficients
+on MMM data (:meth:`SwivelPredictor.fit`) instead of using the printed ones. The sequence is chosen
+for its gimbal lock (palm normal along the forward axis), which the KIT hands never come near
+(≥ 47° away in 99 % of frames): roll-pitch-yaw ("xyz") locks with the palm facing down, where the
+hands work (within 10° in 11.5 % of the frames), and there θ and ψ swing by up to π from one frame
+to the next, and Ψ_human with them. The left
 TCP orientation is mirrored as ``R_arm = D R diag(1, -1, 1)`` with ``D = diag(-1, 1, 1)`` (that is
 ``D R D Rz(π)``), so that mirror-symmetric hands, whose TCP frames both follow "z = approach,
 x = palm normal, y = z × x", get identical features.
@@ -41,6 +49,10 @@ if TYPE_CHECKING:
 
 TWO_PI = 2.0 * np.pi
 _SINGULAR = 1e-6  # relative size below which the swivel angle is undefined
+# sine of the angle (upper arm to the shoulder -> wrist axis; that axis to the vertical) at which
+# swivel_weight is 1/2: about 6 deg, where 1 mm of elbow motion turns Psi by ~0.03 rad
+_FADE = 0.1
+EULER = "xzy"  # extrinsic sequence of the hand orientation angles (module docstring)
 _UP = np.array([0.0, 0.0, 1.0])
 _MIRROR = np.array([-1.0, 1.0, 1.0])  # x -> -x
 _SIDE_SIGN = np.array([-1.0, 1.0])  # left Ψ = -Ψ_raw, right Ψ = Ψ_raw
@@ -102,6 +114,22 @@ def swivel_angle(shoulder: np.ndarray, elbow: np.ndarray, wrist: np.ndarray) -> 
     """Ψ (..., 2) in [0, 2π) from (..., 2, 3) joint centres (arm 0 = left, mirrored); NaN if singular."""
     psi_raw = _swivel_parts(shoulder, elbow, wrist)[0]
     return (_SIDE_SIGN * psi_raw) % TWO_PI
+
+
+def swivel_weight(shoulder: np.ndarray, elbow: np.ndarray, wrist: np.ndarray) -> np.ndarray:
+    """How well Ψ is defined, (..., 2) in [0, 1]: 0 at the singularities, 1 away from them.
+
+    ``s^4 / (s^4 + 0.1^4)`` for each of s = the sine of the upper arm's angle to the shoulder ->
+    wrist axis and s = the sine of that axis' angle to the vertical, multiplied (0.94 at 0.2, 0.5
+    at 0.1, 0.01 at 0.03).
+    """
+    _, singular, *_, eps2, _, sigma, _ = _swivel_parts(shoulder, elbow, wrist)
+    upper2 = np.sum(np.square(np.asarray(elbow, float) - np.asarray(shoulder, float)), axis=-1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        s_elbow2 = eps2 / upper2
+    fade4 = _FADE**4
+    weight = s_elbow2**2 / (s_elbow2**2 + fade4) * sigma**4 / (sigma**4 + fade4)
+    return np.where(singular, 0.0, weight)
 
 
 def swivel_gradient(
@@ -188,12 +216,12 @@ class SwivelPredictor:
         """(..., 2, 12) regressors from (..., 2, 3) shoulder and TCP positions, (..., 2, 3, 3) TCP rotations.
 
         Inputs are in a frame with x right, y forward, z up; the left arm is mirrored into its arm
-        frame. (x, y, z) is the TCP relative to the shoulder; (θ, φ, ψ) are the extrinsic "xyz"
-        Euler angles of the TCP orientation.
+        frame. (x, y, z) is the TCP relative to the shoulder; (θ, φ, ψ) are the extrinsic
+        :data:`EULER` angles of the TCP orientation.
         """
         p, rot = _arm_frame(shoulder, tcp_pos, tcp_rot)
         shape = rot.shape[:-2]
-        eul = Rotation.from_matrix(rot.reshape(-1, 3, 3)).as_euler("xyz").reshape(*shape, 3)
+        eul = Rotation.from_matrix(rot.reshape(-1, 3, 3)).as_euler(EULER).reshape(*shape, 3)
         th, ph, ps = eul[..., 0], eul[..., 1], eul[..., 2]
         x, y, z = p[..., 0], p[..., 1], p[..., 2]
         cols = [
@@ -293,9 +321,10 @@ def eea_r_target(psi: np.ndarray, psi_human: np.ndarray, psi_mmm: np.ndarray) ->
 class EEA(Criterion):
     """EEA: each arm's elbow elevation Ψ to the human-like prediction Ψ_human (e (F, 2)).
 
-    Where Ψ is undefined (stretched arm, vertical shoulder -> wrist axis) the residual and its row
-    of the Jacobian are 0: there is no elevation to compare. The prediction is held fixed in the
-    Jacobian (formulas.md §9).
+    e = :func:`swivel_weight` · wrap(Ψ - Ψ_human) / π: toward a stretched arm or a vertical
+    shoulder -> wrist axis the residual and its row of the Jacobian fade to 0, as there is no
+    elevation to compare. The prediction and the weight are held fixed in the Jacobian (formulas.md
+    §9); each factor of the weight is above 0.99 beyond 19° from its singularity.
     """
 
     name, gamma, x0, weight = "EEA", 4.0, 0.3, 1 / 20
@@ -313,11 +342,12 @@ class EEA(Criterion):
 
     def residual(self, state, sample):
         psi = swivel_angle(state.shoulder, state.elbow, state.wrist)
-        return np.nan_to_num(eea_residual(psi, self.target(state, sample, psi)))
+        weight = swivel_weight(state.shoulder, state.elbow, state.wrist)
+        return weight * np.nan_to_num(eea_residual(psi, self.target(state, sample, psi)))
 
     def jacobian(self, state, sample):
-        psi = swivel_angle(state.shoulder, state.elbow, state.wrist)
-        return np.where(np.isfinite(psi)[..., None], swivel_jacobian(state) / np.pi, 0.0)
+        weight = swivel_weight(state.shoulder, state.elbow, state.wrist)
+        return weight[..., None] * swivel_jacobian(state) / np.pi
 
     def cost(self, e):
         return eea_cost(e)

@@ -9,7 +9,6 @@ and every motion also mirrored (paper Sec. III-B).
 from __future__ import annotations
 
 import hashlib
-import os
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -24,12 +23,14 @@ from hlik.errors import HlikError
 from hlik.human.kinematics import forward_kinematics, shoulder_frame
 from hlik.human.load import load_motion
 from hlik.human.motion import HumanMotion
-from hlik.paths import demo_motion_path, robots_dir
+from hlik.paths import cache_dir, demo_motion_path, robots_dir
 from hlik.robot.model import SIDES, Robot, joint_mapping
 
 RATE = 100.0
 TRIM = 1.0  # s dropped at each end of a recording
-CACHE_VERSION = "learned/3"
+# 4: first-order synergies over the joints the mapping moves, Psi_human on x-z-y hand angles,
+# root rotations resampled by C2 splines
+CACHE_VERSION = "learned/4"
 
 
 @dataclass(frozen=True, eq=False)
@@ -87,18 +88,13 @@ def fit(robot: Robot, motions: Sequence[HumanMotion], names: tuple[str, ...] = (
         if m.duration > 4 * TRIM:
             m = m.crop(TRIM, m.duration - TRIM)
         corpus += [m, m.mirrored()]
-    idx = np.asarray(robot.index([j for s in SIDES for j in robot.arm_joints[s]]))
+    arm = [j for s in SIDES for j in robot.arm_joints[s]]
+    idx = np.asarray(robot.index(arm))
+    moving = np.array([j not in robot.mapping.held_joints for j in arm])
     poses = [joint_mapping(robot, m)[:, idx] for m in corpus]
-    synergies = fit_synergies(poses, 1.0 / RATE, idx, ~np.isfinite(robot.lower[idx]))
+    synergies = fit_synergies(poses, 1.0 / RATE, idx, ~np.isfinite(robot.lower[idx]), moving)
     swivel, rms = SwivelPredictor.fit(*_body_frame_kinematics(corpus))
     return Learned(robot.name, names, synergies, swivel, float(rms), float(scale_factor(robot)))
-
-
-def cache_dir() -> Path:
-    """``$HLIK_CACHE``, else ``$XDG_CACHE_HOME/hlik``, else ``~/.cache/hlik``."""
-    if "HLIK_CACHE" in os.environ:
-        return Path(os.environ["HLIK_CACHE"])
-    return Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "hlik"
 
 
 def _body_frame_kinematics(motions: Sequence[HumanMotion]) -> tuple[np.ndarray, ...]:

@@ -1,8 +1,8 @@
 """Synergies: SYN (reconstruction), SYN^r (pose similarity in synergy space), MIS (first-order).
 
 Postural synergies are the first k principal components of robot-mapped human poses (both arms
-together); first-order synergies those of the joint velocities, each velocity scaled by its
-standard deviation (the robots carry no velocity limits). Fitting lives in :mod:`hlik.learned`.
+together); first-order synergies those of the joint velocities of the joints the mapping moves, each
+velocity scaled by its standard deviation. Fitting lives in :mod:`hlik.criteria.learned`.
 """
 
 from __future__ import annotations
@@ -35,8 +35,9 @@ class Synergies:
         mean: (d,) mean pose, rad.
         basis: (k, d) postural components (orthonormal rows).
         explained: (k,) explained variance ratios of the postural components.
-        vel_scale: (d,) standard deviation of each joint's velocity, rad/s.
-        vel_basis: (k, d) first-order components of the scaled velocities.
+        moving: (d,) True for the joints the first-order components span: those the mapping moves.
+        vel_scale: (d_v,) standard deviation of each moving joint's velocity, rad/s.
+        vel_basis: (k, d_v) first-order components of the scaled velocities.
         vel_explained: (k,) their explained variance ratios.
     """
 
@@ -45,9 +46,15 @@ class Synergies:
     mean: np.ndarray
     basis: np.ndarray
     explained: np.ndarray
+    moving: np.ndarray
     vel_scale: np.ndarray
     vel_basis: np.ndarray
     vel_explained: np.ndarray
+
+    @property
+    def vel_idx(self) -> np.ndarray:
+        """(d_v,) robot joint indices of the first-order components."""
+        return self.idx[self.moving]
 
     def syn_residual(self, q: np.ndarray) -> np.ndarray:
         """SYN: (F, d) part of the pose (F, n) outside the synergy subspace, (I - P^T P)(q - mean)."""
@@ -80,13 +87,24 @@ def velocities(q: np.ndarray, dt: float) -> np.ndarray:
 
 
 def fit_synergies(
-    poses: list[np.ndarray], dt: float, idx: np.ndarray, unlimited: np.ndarray, k: int = N_COMPONENTS
+    poses: list[np.ndarray],
+    dt: float,
+    idx: np.ndarray,
+    unlimited: np.ndarray,
+    moving: np.ndarray | None = None,
+    k: int = N_COMPONENTS,
 ) -> Synergies:
-    """Fit postural and first-order synergies on pose sequences, each (T_i, d) at step ``dt``."""
+    """Fit postural and first-order synergies on pose sequences, each (T_i, d) at step ``dt``.
+
+    ``moving`` (d,) selects the joints of the first-order synergies (default all). A joint the
+    mapping holds fixed has no human velocity to learn from: left in, it would carry no component,
+    so any motion of it would lie wholly outside the span and h_MIS would saturate at 1.
+    """
+    moving = np.ones(len(idx), dtype=bool) if moving is None else np.asarray(moving, dtype=bool)
     stacked = np.concatenate(poses)
     pose_pca = PCA(n_components=k).fit(stacked)
-    vel = np.concatenate([velocities(p, dt) for p in poses])
-    # joints the corpus never moves get a floor, or any motion of theirs would weigh ~1e6 times more
+    vel = np.concatenate([velocities(p[:, moving], dt) for p in poses])
+    # a joint the corpus barely moves gets a floor, or any motion of it would dominate the rest
     std = vel.std(axis=0)
     scale = np.maximum(std, 0.05 * std.max() + 1e-9)
     vel_pca = PCA(n_components=k).fit(vel / scale)
@@ -96,6 +114,7 @@ def fit_synergies(
         mean=pose_pca.mean_,
         basis=pose_pca.components_,
         explained=pose_pca.explained_variance_ratio_,
+        moving=moving,
         vel_scale=scale,
         vel_basis=vel_pca.components_,
         vel_explained=vel_pca.explained_variance_ratio_,
@@ -136,29 +155,33 @@ class SYN_r(Criterion):  # noqa: N801 - the paper's name
 class MIS(Criterion):
     """MIS: how far the joint velocity leaves the first-order synergy span (formulas.md §3).
 
-    e (F, d) is the scaled joint velocity since the previous sample, ``(q - q_prev) / dt / scale``
-    (unlimited joints as angular distance), and h the paper's misalignment ``sin^2`` of its angle to
-    the span (0 at rest). Solver form: ``sin^2`` is scale-free and not differentiable at rest, so
+    e (F, d_v) is the scaled velocity since the previous sample of the joints the mapping moves,
+    ``(q - q_prev) / dt / scale`` (unlimited joints as angular distance), and h the paper's
+    misalignment ``sin^2`` of its angle to the span (0 at rest). Joints the mapping holds fixed
+    (ARMAR-6's clavicles, Panda joint 7) are left out: the corpus gives them no velocity, so their
+    motion would be all misalignment (h near 1 whenever they move); SYN and HJA^r judge their
+    pose. Solver form: ``sin^2`` is scale-free and not differentiable at rest, so
     the solvers minimise the velocity outside the span instead, ``||(I - U^T U) e||^2`` (a
     velocity penalty, formulas.md §9), and report h.
     """
 
     name, gamma, x0, weight = "MIS", 1.0, 0.49, 1 / 5
-    sites = ()
+    sites, motion = (), True
     solver_form = "velocity penalty ||(I - U^T U) e||^2 (formulas.md §9)"
 
     def __init__(self, robot: Robot, learned: Learned):
         syn = learned.synergies
         self.syn, self.n = syn, robot.dof
-        self.outside = np.eye(len(syn.idx)) - syn.vel_basis.T @ syn.vel_basis
+        self.idx, self.unlimited = syn.vel_idx, syn.unlimited[syn.moving]
+        self.outside = np.eye(len(self.idx)) - syn.vel_basis.T @ syn.vel_basis
 
     def residual(self, state, sample):
-        d = joint_difference(state.q[:, self.syn.idx], sample.history[:, 0, self.syn.idx], self.syn.unlimited)
+        d = joint_difference(state.q[:, self.idx], sample.history[:, 0, self.idx], self.unlimited)
         return d / sample.dt / self.syn.vel_scale
 
     def jacobian(self, state, sample):
-        jac = np.zeros((len(self.syn.idx), self.n))
-        jac[:, self.syn.idx] = np.diag(1.0 / (sample.dt * self.syn.vel_scale))
+        jac = np.zeros((len(self.idx), self.n))
+        jac[:, self.idx] = np.diag(1.0 / (sample.dt * self.syn.vel_scale))
         return np.broadcast_to(jac, (len(state.q), *jac.shape))
 
     def cost(self, e):

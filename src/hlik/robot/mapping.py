@@ -36,6 +36,11 @@ class JointMap:
     b: float
     offset: DynamicOffset | None = None
 
+    @property
+    def held(self) -> bool:
+        """True where the joint follows no MMM joint: it stays at ``b`` whatever the human does."""
+        return self.offset is None and (self.mmm is None or self.a == 0.0)
+
     def __call__(self, angles: Mapping[str, np.ndarray], n: int) -> np.ndarray:
         q = np.full(n, self.b)
         if self.mmm is not None and self.a != 0.0:
@@ -57,6 +62,11 @@ class JointMapping:
         used = {m.mmm for m in self.joints if m.mmm and m.a != 0.0}
         used |= {m.offset.mmm for m in self.joints if m.offset}
         return tuple(sorted(used))
+
+    @property
+    def held_joints(self) -> tuple[str, ...]:
+        """Robot joints the mapping holds fixed (ARMAR-6's clavicles, Panda joint 7)."""
+        return tuple(m.joint for m in self.joints if m.held)
 
     def get(self, joint: str) -> JointMap:
         return next(m for m in self.joints if m.joint == joint)

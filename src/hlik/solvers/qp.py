@@ -81,11 +81,16 @@ class QPSettings:
 
 
 def build_terms(
-    robot: Robot, settings: QPSettings, learned: Learned | None, scenario: str | None = None
+    robot: Robot,
+    settings: QPSettings,
+    learned: Learned | None,
+    scenario: str | None = None,
+    first: bool = False,
 ) -> list[Term]:
     """The stack of ``settings`` for ``robot``: targets, smoothness, criteria with their weights.
 
-    ``scenario`` overrides ``settings.scenario`` (the first frame of ``relative`` uses ``pose``).
+    ``scenario`` overrides ``settings.scenario`` (the first frame of ``relative`` uses ``pose``);
+    ``first``: the first frame's stack, without the criteria of motion (``Criterion.motion``).
     """
     scenario = scenario or settings.scenario
     position, orientation = target_terms(scenario)
@@ -98,6 +103,8 @@ def build_terms(
     terms += smoothness_terms(robot, settings.velocity, settings.acceleration, settings.jerk)
     for name in settings.criteria:
         term = registry.criterion(name, robot, learned)
+        if first and term.motion:
+            continue
         # the objective weighs ||e_i||^2 by gamma_i * criterion_cost / k, as the paper weighs h_i
         weight = unified.gamma(name, settings.gamma) * settings.criterion_cost / len(settings.criteria)
         term.cost_weight = float(np.sqrt(weight))
@@ -199,7 +206,7 @@ def solve(
     if settings.criteria and learned is None:
         learned = learn(robot)
     terms = Assembly(build_terms(robot, settings, learned), robot.dof, settings.damping)
-    first = Assembly(build_terms(robot, settings, learned, scenario="pose"), robot.dof, settings.damping)
+    first = Assembly(build_terms(robot, settings, learned, "pose", first=True), robot.dof, settings.damping)
     data = mujoco.MjData(robot.model)
     pairs = collision_pairs(robot) if settings.self_collision else None
 

@@ -148,7 +148,8 @@ def build_losses(
     """The losses of ``settings`` with non-zero weight; ``first``: those of the first frame.
 
     The first frame of ``relative`` tracks the TCP poses "as in Section V-A": with the default
-    (pose) weights, and the same criteria.
+    (pose) weights, and the same criteria. The first frame leaves out the criteria of motion
+    (``Criterion.motion``): it has no motion before it.
     """
     if first and settings.scenario == "relative":
         pose = SLSQPSettings()
@@ -165,9 +166,9 @@ def build_losses(
         (Smoothness(JERK, robot, "jerk"), settings.jerk),
     ]
     for name in settings.criteria:
-        weighted.append(
-            (registry.criterion(name, robot, learned), settings.criterion / len(settings.criteria))
-        )
+        term = registry.criterion(name, robot, learned)
+        if not (first and term.motion):
+            weighted.append((term, settings.criterion / len(settings.criteria)))
     gamma = {name: settings.position_gamma for name in POSITION_TERMS}
     gamma |= {name: unified.gamma(name, settings.gamma) for name in settings.criteria}
     return [Loss(t, float(w), float(gamma.get(t.name, 1.0))) for t, w in weighted if w > 0]
@@ -349,7 +350,8 @@ def solve(
         learned = learn(robot)
     objective = Objective(robot, build_losses(robot, settings, learned), settings.gradients, settings.fd_step)
     first = objective
-    if settings.scenario == "relative":
+    motion = any(registry.criterion_class(name).motion for name in settings.criteria)
+    if settings.scenario == "relative" or motion:
         losses = build_losses(robot, settings, learned, first=True)
         first = Objective(robot, losses, settings.gradients, settings.fd_step)
     opt = make_optimizer(robot, settings)
