@@ -11,6 +11,15 @@ the whole capped to ``max_step`` and clipped into the joint limits. Frames are w
 the previous solution; a frame stops when no joint moves more than ``tol`` or after ``max_iter``
 steps. The criterion gradients are the analytic ones of :mod:`hlik.terms` (the paper uses finite
 differences).
+
+Self-collision avoidance (not in the paper) is the task of highest priority, with the QP's velocity
+damper on the signed distances of :mod:`hlik.robot.collision`: a step that keeps every pair of
+collision geoms apart is taken as it is; one that would bring a pair closer than the damper allows is
+replaced by the same damped least-squares step on the targets solved subject to the damper rows (a
+small QP), with the null-space term in the null space of the targets and of the rows it holds. Its
+fixed point is a stationary point of the tracking error on the body's surface, so the hand slides
+along the body and the frame converges (a projection of the free step onto the rows would not: it
+depends on Chan & Dubey's weights, which flip as the cut step turns back, and cycles).
 """
 
 from __future__ import annotations
@@ -18,6 +27,7 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 
+import daqp
 import mujoco
 import numpy as np
 
@@ -26,6 +36,7 @@ from hlik.criteria.base import Sample, Term
 from hlik.criteria.functional import fORI, fORI_off, target_terms
 from hlik.criteria.learned import Learned, learn
 from hlik.problem.problem import Problem
+from hlik.robot.collision import CollisionPairs, collision_pairs, pair_distances
 from hlik.robot.model import Robot
 from hlik.robot.state import RobotState, robot_state
 from hlik.solvers.base import ConfiguredSolver, SolverResult
@@ -60,6 +71,10 @@ class JVSettings:
         rcond: Singular values of J below rcond times the largest count as null space.
         max_iter: Steps per frame at most (paper: 100; the first frame gets ten times more).
         tol: A frame has converged when no joint moved more than this in a step, rad.
+        self_collision: Keep every pair of the robot's collision geoms ``collision_margin`` apart
+            (m) with the QP's velocity damper (a pair closer than ``collision_detect`` may approach
+            by at most ``collision_gain`` of its distance to the margin per step), as the task of
+            highest priority: a step that breaks it is replaced (:func:`avoiding_least_norm`).
     """
 
     criteria: tuple[str, ...] = ()
@@ -77,6 +92,10 @@ class JVSettings:
     rcond: float = 1e-6
     max_iter: int = 100
     tol: float = 1e-4
+    self_collision: bool = True
+    collision_margin: float = 0.01
+    collision_detect: float = 0.10
+    collision_gain: float = 0.5
 
 
 @dataclass(frozen=True, eq=False)
@@ -172,6 +191,68 @@ def bound(v: np.ndarray, limit: float) -> np.ndarray:
     return v * (limit / largest) if largest > limit else v
 
 
+def avoiding_least_norm(
+    jac: np.ndarray,
+    xdot: np.ndarray,
+    weights: np.ndarray,
+    damping: float,
+    rows: np.ndarray,
+    rhs: np.ndarray,
+    lower: np.ndarray,
+    upper: np.ndarray,
+) -> np.ndarray | None:
+    """:func:`weighted_least_norm` subject to ``rows @ qdot <= rhs`` and ``lower <= qdot <= upper``.
+
+    It solves ``min |J qdot - xdot|² + λ² qdotᵀ W qdot``, whose unconstrained minimiser is the
+    weighted least-norm solution; with the rows, its fixed point (``qdot = 0``) is a stationary
+    point of the tracking error among the configurations that keep the rows, whatever the weights.
+    Weights are capped at 1e6 (larger ones hold a joint all the same). None if infeasible.
+    """
+    w = np.minimum(weights, 1e6)
+    hessian = jac.T @ jac + damping**2 * np.diag(w)
+    sense = np.zeros(len(lower) + len(rhs), dtype=np.int32)
+    up = np.concatenate([upper, rhs])
+    lo = np.concatenate([lower, np.full(len(rhs), -1e30)])
+    x, _, exitflag, _ = daqp.solve(hessian, -jac.T @ xdot, rows, up, lo, sense)
+    return np.asarray(x) if exitflag > 0 and np.all(np.isfinite(x)) else None
+
+
+def _fraction_within(rows: np.ndarray, rhs: np.ndarray, x: np.ndarray, v: np.ndarray) -> float:
+    """The largest s in [0, 1] with ``rows @ (x + s v) <= rhs`` for the rows ``x`` meets."""
+    rate, room = rows @ v, rhs - rows @ x
+    with np.errstate(divide="ignore", invalid="ignore"):
+        limits = np.where((rate > 0) & (room >= 0), room / rate, np.inf)
+    return float(np.clip(np.min(limits, initial=1.0), 0.0, 1.0))
+
+
+def _avoiding_step(
+    jac: np.ndarray,
+    xdot: np.ndarray,
+    weights: np.ndarray,
+    damping: float,
+    rows: np.ndarray,
+    rhs: np.ndarray,
+    q: np.ndarray,
+    box: JointBox,
+    settings: JVSettings,
+    null_step: Callable[[np.ndarray, np.ndarray], np.ndarray],
+) -> tuple[np.ndarray, np.ndarray]:
+    """The task step under the collision rows (:func:`avoiding_least_norm`) and the null-space step
+    of the targets and the rows it holds at their bound (before bounding), each (n,).
+
+    Rows that cannot all be met within the box are relaxed to "come no closer"; if even that fails,
+    the task step is zero.
+    """
+    lower = np.minimum(np.maximum(box.lower - q, -settings.max_step), 0.0)
+    upper = np.maximum(np.minimum(box.upper - q, settings.max_step), 0.0)
+    for bounds in (rhs, np.maximum(rhs, 0.0)):
+        task = avoiding_least_norm(jac, xdot, weights, damping, rows, bounds, lower, upper)
+        if task is not None:
+            active = rows @ task >= bounds - 1e-7
+            return task, null_step(np.vstack([jac, rows[active]]), task)
+    return np.zeros(len(q)), np.zeros(len(q))
+
+
 def criterion_terms(robot: Robot, settings: JVSettings, learned: Learned | None) -> list[Term]:
     """The criteria of ``settings``, each with its null-space weight w_i as ``cost``."""
     terms: list[Term] = []
@@ -211,31 +292,59 @@ def step(
     memory: Memory,
     data: mujoco.MjData | None = None,
     box: JointBox | None = None,
+    pairs: CollisionPairs | None = None,
 ) -> tuple[np.ndarray, Memory]:
-    """One JV step from ``q`` (n,) within ``box`` (default: the joint limits): the joint change dq
-    (n,), before clipping, and the new memory.
+    """One JV step from ``q`` (n,) within ``box`` (default: the joint limits), keeping the collision
+    ``pairs`` apart (:func:`avoiding_least_norm`, if given): the joint change dq (n,), before
+    clipping, and the new memory.
 
     The null-space bound halves whenever the null-space step reverses: the steep H (and the
     criteria) make bounded gradient steps of a fixed size zig-zag across their minimum, so a frame
     would never converge.
     """
     sites = tuple(sorted({i for t in (*targets, *criteria) for i in t.sites}))
+    data = mujoco.MjData(robot.model) if data is None else data
     state = robot_state(robot, q, jacobians=True, data=data, jacobian_sites=sites)
     e, jac = primary(targets, state, frame, settings.orientation_weight)
     _, jla = chan_dubey(q, robot.lower, robot.upper)
     damping = np.hypot(settings.damping, np.linalg.norm(e)) if settings.error_damping else settings.damping
     box = box or JointBox(robot.lower, robot.upper)
-    task = clamped_least_norm(jac, -settings.step * e, limit_weights(jla, memory.jla), damping, q, box)
+    xdot, weights = -settings.step * e, limit_weights(jla, memory.jla)
+    task = clamped_least_norm(jac, xdot, weights, damping, q, box)
     grad = secondary(criteria, state, frame, jla, settings)
     # joints at a bound of the frame's box are held: the null space is that of the others, and the
     # step is scaled (not clipped) into the box, since a clipped null-space step moves the targets
     free = (q > box.lower) & (q < box.upper)
-    null = np.zeros(robot.dof)
-    null[free] = settings.k * (null_space_projector(jac[:, free], settings.rcond) @ grad[free])
-    null = null * _fraction_inside(q + task, null, box)
-    null_bound = memory.null_bound * (0.5 if null @ memory.null < 0.0 else 1.0)
-    null = bound(null, null_bound)
+
+    def null_step(held: np.ndarray, start: np.ndarray) -> np.ndarray:
+        """The null-space step of the rows ``held`` (k, n), into the box from ``q + start``."""
+        null = np.zeros(robot.dof)
+        null[free] = settings.k * (null_space_projector(held[:, free], settings.rcond) @ grad[free])
+        return null * _fraction_inside(q + start, null, box)
+
+    def bounded(null: np.ndarray) -> tuple[np.ndarray, float]:
+        null_bound = memory.null_bound * (0.5 if null @ memory.null < 0.0 else 1.0)
+        return bound(null, null_bound), null_bound
+
+    null, null_bound = bounded(null_step(jac, task))
     dq = bound(task + null, settings.max_step)
+    if pairs is not None and len(pairs) and np.all(np.isfinite(dq)):
+        mujoco.mj_comPos(robot.model, data)  # the kinematics of q are in data (robot_state)
+        dist, dist_grad = pair_distances(robot, data, pairs, settings.collision_detect)
+        # the QP's velocity damper: d + grad dq >= margin - (1 - gain)(d - margin)
+        rows, rhs = -dist_grad, settings.collision_gain * (dist - settings.collision_margin)
+        if np.any(rows @ dq > rhs + 1e-9):
+            task, null = _avoiding_step(jac, xdot, weights, damping, rows, rhs, q, box, settings, null_step)
+            null, null_bound = bounded(null)
+            # the null-space step may not break the rows the task step left free (nor worsen one
+            # it could not meet), nor max_step
+            within = np.vstack([rows, np.eye(robot.dof), -np.eye(robot.dof)])
+            limit = np.concatenate([np.maximum(rhs, rows @ task), np.full(2 * robot.dof, settings.max_step)])
+            null = null * _fraction_within(within, limit, task, null)
+            dq = task + null
+            # a null-space step cut to nothing keeps the last one, so that a reversal is still told
+            # (else the null space zig-zags against the rows at the full bound)
+            null = null if np.any(null) else memory.null
     if not np.all(np.isfinite(dq)):
         dq, null = np.zeros(robot.dof), np.zeros(robot.dof)  # a failed step stays put: nothing NaN
     return dq, Memory(jla, null, null_bound)
@@ -254,6 +363,7 @@ def solve(
     tasks, first = list(target_terms(settings.scenario)), list(target_terms("pose"))
     criteria = criterion_terms(robot, settings, learned)
     data = mujoco.MjData(robot.model)
+    pairs = collision_pairs(robot) if settings.self_collision else None
     memory: Memory | None = None
 
     def solve_frame(k: int, frame: Sample, q: np.ndarray, box: JointBox) -> FrameResult:
@@ -268,7 +378,7 @@ def solve(
             nonlocal memory
             assert memory is not None
             dq, memory = step(
-                robot, first if k == 0 else tasks, criteria, x, frame, settings, memory, data, box
+                robot, first if k == 0 else tasks, criteria, x, frame, settings, memory, data, box, pairs
             )
             return dq
 
