@@ -2,12 +2,12 @@
 
 An approach is a solver with the criteria it adds, e.g. ``jm``, ``qp``, ``qp+SYN``, ``jv+HJA_r``,
 ``slsqp+SYN+HJA_r``. The stack (weights) is ``tasks/ee_pose.toml`` or ``tasks/relative_pose.toml``
-(``--scenario``). Each take is cropped to ``--seconds`` after skipping the first second.
+(``--scenario``), or ``--stack``. Each take is cropped to ``--seconds`` after skipping the first second.
 ``fPOS reach`` is the median over frames whose target lies within 95 % of the arm's length from the
-robot's shoulder (the frames the robot can reach); ``--placement`` the rule placing the robot (``reach``,
-``shoulders``, ``X,Y,YAW``; default ``shoulders``); ``capped %`` the share of frames that ended at the
-solver's iteration cap; ``speed`` the largest joint speed over its limit in any step (any take) and
-``contact %`` the share of frames in self-collision.
+robot's shoulder (the frames the robot can reach); ``--placement`` the rule placing the robot
+(``reach``, ``mapped``, ``optimize``, ``shoulders``, ``X,Y,YAW``; default ``reach``); ``capped %``
+the share of frames that ended at the solver's iteration cap; ``speed`` the largest joint speed over
+its limit in any step (any take) and ``contact %`` the share of frames in self-collision.
 
 Run by hand: ``python bench/quality.py [--robots armar3,armar6] [--approaches qp,qp+SYN]
 [--set criterion_cost=0.1]`` (``--set`` overrides a field of the solvers' settings).
@@ -27,6 +27,7 @@ import hlik
 from hlik.criteria.functional import position_error, relative_errors
 from hlik.criteria.learned import learn
 from hlik.metrics import evaluate
+from hlik.placement_search import optimize_placement
 from hlik.problem.placement import placement_from_spec
 from hlik.robot.state import robot_state
 from hlik.solvers import get_solver
@@ -51,18 +52,25 @@ def run(
     takes: list[Path],
     seconds: float,
     overrides: dict,
-    placement: str = "shoulders",
+    placement: str = "reach",
+    stack_name: str | None = None,
 ) -> dict:
     robot = hlik.load_robot(robot_name)
     solver, *criteria = approach.split("+")
-    stack = load_stack("relative_pose" if scenario == "relative" else "ee_pose").with_criteria(criteria)
+    stack_name = stack_name or ("relative_pose" if scenario == "relative" else "ee_pose")
+    stack = load_stack(stack_name).with_criteria(criteria)
     learned = learn(robot)
     settings = replace(stack.settings(solver), **overrides) if solver != "jm" else None
+    qp_overrides = overrides if solver == "qp" else {}
     rows, fpos, freach, off, times, capped, speed, contact = [], [], [], [], [], [], [], []
     for take in takes:
         motion = hlik.load_motion(take, rate=100.0)
         motion = motion.crop(1.0, min(1.0 + seconds, motion.duration))
-        where = placement_from_spec(placement, robot, motion)
+        if placement == "optimize":
+            fast = get_solver("qp", replace(stack.settings("qp"), **qp_overrides), learned)
+            where, _ = optimize_placement(motion, robot, fast, learned, scenario)
+        else:
+            where = placement_from_spec(placement, robot, motion)
         start = time.perf_counter()
         traj = hlik.retarget(motion, robot, get_solver(solver, settings, learned), where)
         times.append((time.perf_counter() - start) / traj.n_frames)
@@ -95,8 +103,9 @@ def main() -> None:
     parser.add_argument("--robots", default="armar3,armar6,dual_panda")
     parser.add_argument("--approaches", default=DEFAULT)
     parser.add_argument("--scenario", default="pose", choices=("pose", "relative"))
+    parser.add_argument("--stack", default=None, help="task stack (default: ee_pose or relative_pose)")
     parser.add_argument("--seconds", type=float, default=5.0)
-    parser.add_argument("--placement", default="shoulders", help="reach, shoulders or X,Y,YAW")
+    parser.add_argument("--placement", default="reach", help="reach, mapped, optimize, shoulders or X,Y,YAW")
     parser.add_argument("--takes", type=int, default=8, help="use the first N takes")
     parser.add_argument("--set", action="append", default=[], help="override a setting: name=value")
     args = parser.parse_args()
@@ -118,7 +127,8 @@ def main() -> None:
     print(head + " ".join(f"{name:>{width}s}" for name, width in cols), flush=True)
     for robot_name in args.robots.split(","):
         for approach in args.approaches.split(","):
-            r = run(robot_name, approach, args.scenario, takes, args.seconds, overrides, args.placement)
+            where = args.placement
+            r = run(robot_name, approach, args.scenario, takes, args.seconds, overrides, where, args.stack)
             print(
                 f"{robot_name:11s} {approach:18s} {r['m_hl']:6.3f} {r['m_f']:6.3f} {r['m_hl_f']:6.3f} "
                 f"{100 * r['fpos']:8.2f} {100 * r['freach']:8.2f} {100 * r['fpos_off']:7.2f} {r['ms']:8.2f} "

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import pytest
 from typer.testing import CliRunner
 
@@ -81,8 +83,11 @@ def test_cli_rejects_a_bad_stack_before_solving(tmp_path):
 def test_stack_slsqp_settings_are_the_papers():
     from hlik.solvers.slsqp import SLSQPSettings
 
-    assert load_stack("ee_pose").settings("slsqp") == SLSQPSettings()
-    assert load_stack("relative_pose").settings("slsqp") == SLSQPSettings.relative()
+    assert load_stack("paper_opt").settings("slsqp") == SLSQPSettings()  # the paper's OPT
+    tuned = load_stack("ee_pose").settings("slsqp")
+    assert replace(tuned, criterion=10.0, ftol_rel=1e-6) == SLSQPSettings()
+    relative = load_stack("relative_pose").settings("slsqp")
+    assert replace(relative, ftol_rel=1e-6) == SLSQPSettings.relative()
 
 
 @pytest.mark.parametrize(
@@ -120,7 +125,10 @@ def test_stack_jv_settings_are_the_defaults():
 def test_switches_and_collision_settings_read_from_a_stack_file(tmp_path):
     path = tmp_path / "s.toml"
     text = "[qp]\nself_collision = false\ncollision_margin = 0.02\n[slsqp]\nself_collision = false\n"
-    path.write_text(text)
+    path.write_text(text + "[jv]\nself_collision = false\ncollision_margin = 0.03\n")
     stack = load_stack(path)
     assert stack.settings("qp").self_collision is False and stack.settings("qp").collision_margin == 0.02
     assert stack.settings("slsqp").self_collision is False and stack.settings("jv").max_iter == 100
+    jv = stack.settings("jv")
+    assert jv.self_collision is False and jv.collision_margin == 0.03
+    assert load_stack("ee_pose").settings("jv").self_collision is True

@@ -65,7 +65,7 @@ class QPSettings:
     orientation_cost: float = 2.0
     relative_position_cost: float = 10.0
     relative_orientation_cost: float = 2.0
-    criterion_cost: float = 0.02
+    criterion_cost: float = 0.05
     velocity: float = 0.02
     acceleration: float = 0.01
     jerk: float = 0.005
