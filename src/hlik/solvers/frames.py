@@ -88,14 +88,32 @@ def track(
 
 
 def iterate(
-    step: Callable[[np.ndarray], np.ndarray], q: np.ndarray, box: JointBox, max_iter: int, tol: float
+    step: Callable[[np.ndarray], np.ndarray],
+    q: np.ndarray,
+    box: JointBox,
+    max_iter: int,
+    tol: float,
+    damp_reversals: bool = False,
 ) -> FrameResult:
     """Repeat ``q <- clip(q + step(q))`` into ``box`` until no joint moves more than ``tol``
-    (converged) or ``max_iter`` steps (the paper's stopping rule for JV)."""
-    steps, converged = 0, False
+    (converged) or ``max_iter`` steps (the paper's stopping rule for JV).
+
+    ``damp_reversals``: a step that turns back on the previous one (cosine below -1/2) halves the
+    scale of this and every later step. A Gauss-Newton step can flip a joint between the ends of
+    its speed box where the linearisation is poor (ARMAR-III's elbow near a stretched arm: the same
+    +-0.01 rad step every iteration until the cap); halving settles it between them.
+    """
+    steps, converged, scale = 0, False, 1.0
     q = box.clip(q)
+    previous: np.ndarray | None = None
     while steps < max_iter:
-        new = box.clip(q + step(q))
+        delta = step(q)
+        if damp_reversals and previous is not None:
+            dot = float(delta @ previous)
+            if dot < -0.5 * np.linalg.norm(delta) * np.linalg.norm(previous):
+                scale *= 0.5
+        previous = delta
+        new = box.clip(q + scale * delta)
         moved, q, steps = np.max(np.abs(new - q)), new, steps + 1
         if moved < tol:
             converged = True

@@ -214,7 +214,12 @@ def solve(
         stack = first if k == 0 else terms
         max_iter = settings.max_iter * (10 if k == 0 else 1)
         return iterate(
-            lambda x: step(robot, stack, x, frame, settings, data, box, pairs), q, box, max_iter, settings.tol
+            lambda x: step(robot, stack, x, frame, settings, data, box, pairs),
+            q,
+            box,
+            max_iter,
+            settings.tol,
+            damp_reversals=True,
         )
 
     return track(problem, solve_frame, progress)
