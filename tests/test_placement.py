@@ -83,6 +83,21 @@ def test_mapped_placement_recovers_the_base_that_put_the_mapped_hands_there(name
     np.testing.assert_allclose(found.translation[:2], truth.translation[:2], atol=1e-9)
 
 
+def test_mapped_placement_ignores_a_stretch_of_targets_carried_away():
+    """A fifth of the frames' hand targets carried 2 m forward (field case unreachable_forward_2m)
+    leave the fit on the rest."""
+    robot = load_robot("armar6")
+    motion = demo_motion().crop(1.0, 3.0).resample(20.0)
+    state = robot_state(robot, joint_mapping(robot, motion))
+    truth = Placement(_rot_z(0.7), np.array([0.2, -0.5, 0.0]))
+    world = [truth.to_world(p) for p in (state.shoulder, state.elbow, state.wrist, state.tcp)]
+    away = slice(10, 18)
+    world[3][away] += np.array([0.0, 2.0, 0.0])
+    found = mapped_placement(robot, motion, HumanKinematics(*world, truth.rotation @ state.tcp_rot))
+    np.testing.assert_allclose(found.translation[:2], truth.translation[:2], atol=1e-6)
+    assert found.yaw == pytest.approx(truth.yaw, abs=1e-6)
+
+
 @pytest.mark.parametrize("name", ROBOTS)
 def test_shoulder_placement_matches_shoulder_midpoints_and_heading(name, takes):
     r = load_robot(name)

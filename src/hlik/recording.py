@@ -5,7 +5,7 @@ Entity tree::
     /world/human/bodies/<body>      human model (MJCF geometry), world frame
     /world/human/hand_paths         recorded hand (TCP) paths
     /world/objects/<object>         scene objects as boxes fitted to their markers
-    /world/placement                the robot base pose the placement chose (x and forward arrows)
+    /world/placement                the robot base as drawn (x and forward arrows), labelled with its rule
     /world/robot                    placement (and side-by-side offset) of the robot base
     /world/robot/bodies/<body>      robot model (MJCF geometry), base frame
     /world/robot/target_paths       hand targets; /world/robot/targets/<side> the current target frame
@@ -108,19 +108,19 @@ def _log(rec, traj: Trajectory, robot: Robot, layout: str, metrics: Mapping[str,
     for name, obj in traj.motion.objects.items():
         _log_object(rec, f"/world/objects/{_entity(name)}", obj, traj.times)
 
-    # Where the placement put the robot in the human's world (the side layout draws it shifted).
-    p = traj.placement
+    # The robot base as drawn (the side layout shifts it beside the human; overlay shows it where
+    # the placement put it) and the rule that placed it.
+    shown = _display_placement(traj.placement, layout)
     rec.log(
         "/world/placement",
         rr.Arrows3D(
-            origins=[p.translation, p.translation],
-            vectors=[0.3 * p.rotation[:, 0], 0.5 * p.rotation[:, 1]],
+            origins=[shown.translation, shown.translation],
+            vectors=[0.3 * shown.rotation[:, 0], 0.5 * shown.rotation[:, 1]],
             colors=[(220, 60, 60), (60, 200, 60)],
-            labels=[f"base ({p.method})", "faces"],
+            labels=[f"base ({traj.placement.method})", "faces"],
         ),
         static=True,
     )
-    shown = _display_placement(traj.placement, layout)
     rec.log(
         "/world/robot",
         rr.Transform3D(translation=shown.translation, mat3x3=shown.rotation),

@@ -167,19 +167,26 @@ def reach_scores(
 def mapped_placement(robot: Robot, motion: HumanMotion, human: HumanKinematics | None = None) -> Placement:
     """Where the human's own joint angles put the robot's hands on the human's: the upright base
     pose that best fits the TCP positions of the joint mapping (JM, base frame) onto the human hand
-    positions (world) in the least-squares sense (2D Procrustes over all frames and both hands).
+    positions (world), both hands, all frames (2D Procrustes).
 
-    The base height puts the shoulders at the human's, as the other rules do.
+    The fit is trimmed: hand positions farther from the fit than twice the median distance (and
+    5 cm) are dropped and the fit repeated, so a stretch of unreachable targets (a subject carried
+    away) does not drag the robot off the rest. The base height puts the shoulders at the human's,
+    as the other rules do.
     """
     human = human or forward_kinematics(motion)
     mapped, _ = tcp_poses(robot, joint_mapping(robot, motion))
     a = mapped.reshape(-1, 3)[:, :2]
     b = human.tcp_pos.reshape(-1, 3)[:, :2]
-    a_mean, b_mean = a.mean(axis=0), b.mean(axis=0)
-    h = (a - a_mean).T @ (b - b_mean)
-    yaw = np.arctan2(h[0, 1] - h[1, 0], h[0, 0] + h[1, 1])
-    rotation = _rot_z(yaw)
-    xy = b_mean - rotation[:2, :2] @ a_mean
+    keep = np.ones(len(a), dtype=bool)
+    for _ in range(3):
+        a_mean, b_mean = a[keep].mean(axis=0), b[keep].mean(axis=0)
+        h = (a[keep] - a_mean).T @ (b[keep] - b_mean)
+        yaw = np.arctan2(h[0, 1] - h[1, 0], h[0, 0] + h[1, 1])
+        rotation = _rot_z(yaw)
+        xy = b_mean - rotation[:2, :2] @ a_mean
+        miss = np.linalg.norm(a @ rotation[:2, :2].T + xy - b, axis=-1)
+        keep = miss <= max(2.0 * float(np.median(miss)), 0.05)
     height = shoulder_placement(robot, human).translation[2]
     return Placement(rotation, np.array([xy[0], xy[1], height]), "mapped")
 
