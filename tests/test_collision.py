@@ -313,36 +313,3 @@ def test_hand_on_other_wrist_is_a_contact(robot):
         if dist < 0 and ((b1 in left and b2 in right) or (b2 in left and b1 in right))
     ]
     assert hits, f"{robot.name}: left hand on the right wrist, contacts {contacts}"
-
-
-@pytest.mark.parametrize("name", ROBOTS)
-def test_linearised_distances_match_the_exact_ones_near_the_linearisation(name):
-    from hlik.robot.collision import LinearisedDistances, collision_pairs, pair_distances
-    from hlik.robot.model import load_robot
-
-    robot = load_robot(name)
-    pairs, data = collision_pairs(robot), mujoco.MjData(robot.model)
-    rng = np.random.default_rng(3)
-
-    def exact(q):
-        data.qpos[:] = q
-        mujoco.mj_kinematics(robot.model, data)
-        mujoco.mj_comPos(robot.model, data)
-        return pair_distances(robot, data, pairs, 0.3)
-
-    q0 = robot.home.copy()
-    lin = LinearisedDistances(robot, pairs, 0.3, radius=0.01)
-    exact(q0)
-    d0, g0 = lin.at(q0, data)
-    np.testing.assert_allclose(d0, exact(q0)[0])  # same pairs, same values at the linearisation
-    dq = rng.uniform(-0.008, 0.008, robot.dof)  # within the radius: predicted, not recomputed
-    exact(q0 + dq)
-    predicted, grad = lin.at(q0 + dq, data)
-    assert grad is g0
-    d1, _ = exact(q0 + dq)
-    assert len(d1) == len(predicted) > 0
-    assert np.max(np.abs(predicted - d1)) < 5e-3
-    far = q0 + 0.05  # beyond the radius: relinearised at the new configuration
-    exact(far)
-    d2, _ = lin.at(far, data)
-    np.testing.assert_allclose(d2, exact(far)[0])

@@ -139,3 +139,25 @@ def test_optimize_keeps_the_candidate_with_the_best_unified_metric():
     assert best.method == "optimize"
     np.testing.assert_allclose(best.matrix, winner.placement.matrix)
     assert all(np.isfinite(c.m_hl_f) for c in tried)
+
+
+@pytest.mark.parametrize("name", ROBOTS)
+def test_the_reachability_map_leaves_out_hands_behind_the_back(name):
+    """Hand poses the robot reaches 20 cm or more behind its shoulders' frontal plane have no entry,
+    ones in front do (the map is of the workspace a person works in)."""
+    robot = load_robot(name)
+    reach = reachability_map(robot)
+    rng = np.random.default_rng(5)
+    moving = np.concatenate([robot.index(robot.extra_joints + robot.arm_joints[s]) for s in SIDES])
+    lower = np.where(np.isfinite(robot.lower), robot.lower, -np.pi)
+    upper = np.where(np.isfinite(robot.upper), robot.upper, np.pi)
+    q = np.tile(robot.home, (3000, 1))
+    q[:, moving] = rng.uniform(lower[moving], upper[moving], (3000, len(moving)))
+    state = robot_state(robot, q)
+    shoulder_y = robot_state(robot, robot.home).shoulder[0, :, 1]
+    for side in range(2):
+        entries = reach.lookup(side, state.tcp[:, side], state.tcp_rot[:, side])
+        behind = state.tcp[:, side, 1] < shoulder_y[side] - 0.2
+        ahead = state.tcp[:, side, 1] > shoulder_y[side] + 0.2
+        assert behind.sum() > 10 and np.all(entries[behind] == 0)
+        assert np.mean(entries[ahead] > 0) > 0.9

@@ -109,8 +109,10 @@ def reach_placement(
     """The paper's placement: the base pose where the worst-reachable hand pose of the motion is
     best reachable (minimum over both hands' ORM entries, mean filtered, arg-max).
 
-    Where no candidate reaches every hand pose, the candidate reaching the largest share of them
-    wins. The search is carried in the motion's own frame, so moving or turning the whole motion
+    Where no candidate reaches every hand pose, the poses that even the best candidate misses are
+    left out of the minimum (the k smallest entries are skipped, k the fewest any candidate
+    misses): a stretch of unreachable targets then does not decide where the robot stands. The
+    search is carried in the motion's own frame, so moving or turning the whole motion
     moves the placement with it.
     """
     score, offsets, yaws, frame = reach_scores(robot, human, reach, search)
@@ -143,8 +145,7 @@ def reach_scores(
     gx, gy = np.meshgrid(g, g, indexing="ij")
     offsets = np.stack([gx.ravel(), gy.ravel(), np.zeros(gx.size)], axis=-1)
     yaws = np.arange(0.0, 2 * np.pi - 1e-9, search.yaw_step)
-    worst = np.empty((len(yaws), len(offsets)))
-    share = np.empty_like(worst)
+    ranked = np.empty((len(yaws), len(offsets), 2 * len(frames)), dtype=np.uint16)
     for k, yaw in enumerate(yaws):
         r = _rot_z(yaw) @ r0  # world <- candidate base
         local = (pos - c0) @ r  # hand positions relative to the search origin, candidate axes
@@ -154,9 +155,11 @@ def reach_scores(
             [reach.lookup(s, local[None, :, s] - shift[:, None], base_rot[None, :, s]) for s in range(2)],
             axis=1,
         )
-        worst[k] = entries.min(axis=1)
-        share[k] = (entries > 0).mean(axis=1)
-    score = worst if worst.max() > 0 else share  # nothing reaches every pose: reach the most
+        ranked[k] = np.sort(entries, axis=1)
+    # The paper's minimum over all hand poses; where no candidate reaches them all, the minimum over
+    # all but the fewest any candidate misses (so those do not flatten every score to 0).
+    missed = int(np.min(np.count_nonzero(ranked == 0, axis=2)))
+    score = ranked[:, :, min(missed, ranked.shape[2] - 1)].astype(float)
     n = len(g)
     score = uniform_filter(
         score.reshape(len(yaws), n, n), search.filter_size, mode=("wrap", "nearest", "nearest")

@@ -89,28 +89,3 @@ def pair_distances(
     if not dists:
         return np.zeros(0), np.zeros((0, robot.dof))
     return np.array(dists), np.array(rows)
-
-
-class LinearisedDistances:
-    """:func:`pair_distances` linearised at one configuration and reused near it.
-
-    A solver iterating within one frame moves a few hundredths of a radian; recomputing the exact
-    distances at every iterate costs more than the QP itself. ``at(q)`` returns the distances
-    predicted from the last linearisation, ``d0 + G (q - q0)``, and relinearises when any joint has
-    moved more than ``radius`` (rad) from ``q0``. The prediction's error is second order in that
-    motion (a few mm at 0.01 rad), well inside a centimetre margin.
-    """
-
-    def __init__(self, robot: Robot, pairs: CollisionPairs, detect: float, radius: float = 0.01):
-        self.robot, self.pairs, self.detect, self.radius = robot, pairs, detect, radius
-        self.q0: np.ndarray | None = None
-        self.d0, self.grad = np.zeros(0), np.zeros((0, robot.dof))
-
-    def at(self, q: np.ndarray, data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
-        """Distances (k,) and gradients (k, n) at ``q``; ``data`` must hold the kinematics of ``q``
-        (``mj_kinematics``)."""
-        if self.q0 is None or np.max(np.abs(q - self.q0)) > self.radius:
-            mujoco.mj_comPos(self.robot.model, data)
-            self.d0, self.grad = pair_distances(self.robot, data, self.pairs, self.detect)
-            self.q0 = q.copy()
-        return self.d0 + self.grad @ (q - self.q0), self.grad

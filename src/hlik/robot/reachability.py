@@ -3,7 +3,9 @@
 A map voxelises the 6D TCP pose in the robot base frame: position in cubic cells, orientation in
 equal-volume bins of the ZYZ Euler angles (azimuth and polar cosine of the approach axis z, roll
 about it). Random configurations of the arms (and the joints solved with them, ARMAR-III's hip) are
-drawn within the joint limits; self-colliding ones are dropped. Each entry counts the samples whose
+drawn within the joint limits; self-colliding ones are dropped, and so are hands behind the frontal
+plane through the shoulders (at home): the robot can reach there, but a person does not work behind
+their back, and a placement that needs it is the fault this map is for. Each entry counts the samples whose
 TCP lands within one cell and one orientation bin of it (formulas.md §7: Simox fills neighbouring
 cells). The counting window makes the map dense enough at a few hundred thousand samples to call
 no pose of a tracked motion unreachable, and its count grows towards the middle of the workspace,
@@ -23,10 +25,11 @@ import numpy as np
 from scipy.ndimage import uniform_filter
 
 from hlik.atomic import atomic_path
+from hlik.fk import site_poses
 from hlik.paths import cache_dir, robots_dir
 from hlik.robot.model import SIDES, SITES, Robot
 
-CACHE_VERSION = "reach/1"
+CACHE_VERSION = "reach/2"  # 2: hands in front of the shoulders only
 CELL = 0.08  # m, position cell
 AZIMUTH_BINS, POLAR_BINS, ROLL_BINS = 6, 4, 6  # 60 deg x (cos steps of 0.5) x 60 deg
 N_SAMPLES = 400_000
@@ -125,13 +128,16 @@ def sample_map(robot: Robot, n_samples: int, seed: int = 0) -> ReachabilityMap:
         pos[k] = data.site_xpos[tcp]
         rot[k] = data.site_xmat[tcp]
     pos, tcp_rot = pos[free], rot[free].reshape(-1, 2, 3, 3)
+    shoulder_y = site_poses(model, robot.home[None], robot.site_ids[:, SITES.index("shoulder")])[0][0, :, 1]
+    front = pos[:, :, 1] > shoulder_y  # (N, 2); the robot faces +y
     origin = np.floor(pos.reshape(-1, 3).min(axis=0) / CELL) * CELL - CELL
     shape = (np.ceil((pos.reshape(-1, 3).max(axis=0) - origin) / CELL).astype(int) + 2).tolist()
     n_ori = AZIMUTH_BINS * POLAR_BINS * ROLL_BINS
     hits = np.zeros((2, *shape, n_ori), dtype=np.float32)
     for s in range(2):
-        cells = np.floor((pos[:, s] - origin) / CELL).astype(int)
-        np.add.at(hits[s], (cells[:, 0], cells[:, 1], cells[:, 2], orientation_bin(tcp_rot[:, s])), 1.0)
+        cells = np.floor((pos[front[:, s], s] - origin) / CELL).astype(int)
+        bins = orientation_bin(tcp_rot[front[:, s], s])
+        np.add.at(hits[s], (cells[:, 0], cells[:, 1], cells[:, 2], bins), 1.0)
     # Count over the neighbouring cells and bins: azimuth and roll wrap around, the polar cosine not.
     grid = hits.reshape(2, *shape, AZIMUTH_BINS, POLAR_BINS, ROLL_BINS)
     modes = ["constant"] * 4 + ["wrap", "nearest", "wrap"]

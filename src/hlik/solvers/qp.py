@@ -24,7 +24,7 @@ from hlik.criteria.functional import target_terms
 from hlik.criteria.learned import Learned, learn
 from hlik.criteria.smoothness import smoothness_terms
 from hlik.problem.problem import Problem
-from hlik.robot.collision import CollisionPairs, LinearisedDistances, collision_pairs, pair_distances
+from hlik.robot.collision import CollisionPairs, collision_pairs, pair_distances
 from hlik.robot.model import Robot
 from hlik.robot.state import robot_state
 from hlik.solvers.base import ConfiguredSolver, SolverResult
@@ -141,11 +141,10 @@ def step(
     settings: QPSettings,
     data: mujoco.MjData | None = None,
     box: JointBox | None = None,
-    pairs: CollisionPairs | LinearisedDistances | None = None,
+    pairs: CollisionPairs | None = None,
 ) -> np.ndarray:
     """One QP step from ``q`` (n,) within ``box`` (default: the joint limits), keeping the collision
-    ``pairs`` apart (exact distances at ``q``, or a :class:`LinearisedDistances` reused across a
-    frame's steps): the joint change dq (n,). Reuse ``data`` across steps."""
+    ``pairs`` apart: the joint change dq (n,). Reuse ``data`` across steps."""
     data = mujoco.MjData(robot.model) if data is None else data
     state = robot_state(robot, q, jacobians=bool(stack.sites), data=data, jacobian_sites=stack.sites)
     gradient = np.zeros(robot.dof)
@@ -166,13 +165,9 @@ def step(
     lb = np.minimum(np.maximum(lower - q, -settings.max_step), 0.0)  # q outside the box moves back
     ub = np.maximum(np.minimum(upper - q, settings.max_step), 0.0)
     a_ineq, b_ineq = np.zeros((0, robot.dof)), np.zeros(0)
-    dist, grad = np.zeros(0), np.zeros((0, robot.dof))
-    if isinstance(pairs, LinearisedDistances):
-        dist, grad = pairs.at(q, data)  # the kinematics of q are in data (robot_state)
-    elif pairs is not None and len(pairs):
-        mujoco.mj_comPos(robot.model, data)
+    if pairs is not None and len(pairs):
+        mujoco.mj_comPos(robot.model, data)  # the kinematics of q are in data (robot_state)
         dist, grad = pair_distances(robot, data, pairs, settings.collision_detect)
-    if len(dist):
         # d + grad dq >= margin - (1 - gain)(d - margin): approach by at most gain (d - margin)
         a_ineq, b_ineq = -grad, settings.collision_gain * (dist - settings.collision_margin)
     dq = _solve(hessian, gradient, lb, ub, settings.solver, a_ineq, b_ineq)
@@ -214,13 +209,12 @@ def solve(
     first = Assembly(build_terms(robot, settings, learned, "pose", first=True), robot.dof, settings.damping)
     data = mujoco.MjData(robot.model)
     pairs = collision_pairs(robot) if settings.self_collision else None
-    distances = LinearisedDistances(robot, pairs, settings.collision_detect) if pairs is not None else None
 
     def solve_frame(k: int, frame: Sample, q: np.ndarray, box: JointBox) -> FrameResult:
         stack = first if k == 0 else terms
         max_iter = settings.max_iter * (10 if k == 0 else 1)
         return iterate(
-            lambda x: step(robot, stack, x, frame, settings, data, box, distances),
+            lambda x: step(robot, stack, x, frame, settings, data, box, pairs),
             q,
             box,
             max_iter,
