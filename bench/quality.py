@@ -5,7 +5,7 @@ An approach is a solver with the criteria it adds, e.g. ``jm``, ``qp``, ``qp+SYN
 (``--scenario``), or ``--stack``. Each take is cropped to ``--seconds`` after skipping the first second.
 ``fPOS reach`` is the median over frames whose target lies within 95 % of the arm's length from the
 robot's shoulder (the frames the robot can reach); ``--placement`` the rule placing the robot
-(``reach``, ``mapped``, ``optimize``, ``shoulders``, ``X,Y,YAW``; default ``reach``); ``capped %``
+(``reach``, ``mapped``, ``optimize``, ``shoulders``, ``X,Y,YAW``; default the robot's); ``capped %``
 the share of frames that ended at the solver's iteration cap; ``speed`` the largest joint speed over
 its limit in any step (any take) and ``contact %`` the share of frames in self-collision.
 
@@ -52,7 +52,7 @@ def run(
     takes: list[Path],
     seconds: float,
     overrides: dict,
-    placement: str = "reach",
+    placement: str | None = None,
     stack_name: str | None = None,
 ) -> dict:
     robot = hlik.load_robot(robot_name)
@@ -66,6 +66,7 @@ def run(
     for take in takes:
         motion = hlik.load_motion(take, rate=100.0)
         motion = motion.crop(1.0, min(1.0 + seconds, motion.duration))
+        placement = placement or robot.placement
         if placement == "optimize":
             fast = get_solver("qp", replace(stack.settings("qp"), **qp_overrides), learned)
             where, _ = optimize_placement(motion, robot, fast, learned, scenario)
@@ -105,7 +106,7 @@ def main() -> None:
     parser.add_argument("--scenario", default="pose", choices=("pose", "relative"))
     parser.add_argument("--stack", default=None, help="task stack (default: ee_pose or relative_pose)")
     parser.add_argument("--seconds", type=float, default=5.0)
-    parser.add_argument("--placement", default="reach", help="reach, mapped, optimize, shoulders or X,Y,YAW")
+    parser.add_argument("--placement", default=None, help="reach, mapped, optimize, shoulders or X,Y,YAW")
     parser.add_argument("--takes", type=int, default=8, help="use the first N takes")
     parser.add_argument("--set", action="append", default=[], help="override a setting: name=value")
     args = parser.parse_args()
@@ -113,7 +114,8 @@ def main() -> None:
     takes = sorted((DATA / "kit_bimanual").glob("*.xml"))[: args.takes]
     if not takes:
         raise SystemExit(f"{DATA / 'kit_bimanual'}: no takes (set HLIK_DATA)")
-    print(f"{len(takes)} takes x {args.seconds:g} s, scenario {args.scenario}, placement {args.placement}")
+    where = args.placement or "the robot's"
+    print(f"{len(takes)} takes x {args.seconds:g} s, scenario {args.scenario}, placement {where}")
     head = f"{'robot':11s} {'approach':18s} {'m_hl':>6s} {'m_f':>6s} {'m_hl,f':>6s} "
     cols = (
         ("fPOS cm", 8),

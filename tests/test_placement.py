@@ -23,6 +23,7 @@ from hlik.problem.placement import (
     reach_placement,
     shoulder_placement,
 )
+from hlik.problem.problem import build_problem
 from hlik.problem.targets import HandTargets
 from hlik.robot.model import SIDES, joint_mapping, load_robot
 from hlik.robot.reachability import reachability_map
@@ -161,3 +162,10 @@ def test_the_reachability_map_leaves_out_hands_behind_the_back(name):
         ahead = state.tcp[:, side, 1] > shoulder_y[side] + 0.2
         assert behind.sum() > 10 and np.all(entries[behind] == 0)
         assert np.mean(entries[ahead] > 0) > 0.9
+
+
+@pytest.mark.parametrize("name", ROBOTS)
+def test_a_problem_is_placed_by_the_robots_own_rule(name):
+    robot = load_robot(name)
+    problem = build_problem(demo_motion().crop(1.0, 1.5), robot)
+    assert problem.placement.method == robot.placement == ("mapped" if name == "dual_panda" else "reach")

@@ -25,7 +25,6 @@ app = typer.Typer(
     pretty_exceptions_enable=False,
 )
 console = Console()
-PLACEMENT = "reach"  # default of `hlik run --placement` (README: why)
 
 MotionArg = Annotated[
     Path | None, typer.Argument(help="MMM motion file (default: the bundled demo).", show_default=False)
@@ -81,13 +80,15 @@ def run(
         str, typer.Option(help="slsqp: analytic gradients, or fd (finite differences, as the paper).")
     ] = "analytic",
     placement: Annotated[
-        str,
+        str | None,
         typer.Option(
             help="Where the robot stands: reach (reachability maps, the paper's), mapped (where the "
             "mapped joint angles reach the hands), optimize (the best of those by m_hl,f of a fast QP "
-            "run), shoulders (on the human's), or X,Y,YAW (world m, m, deg)."
+            "run), shoulders (on the human's), or X,Y,YAW (world m, m, deg). Default: the robot's "
+            "(robots/<name>.toml; reach, 2-Panda mapped).",
+            show_default=False,
         ),
-    ] = PLACEMENT,
+    ] = None,
 ) -> None:
     """Retarget a motion to a robot; write a Rerun recording and the trajectory (.npz) beside it."""
     from rich.progress import (
@@ -146,6 +147,7 @@ def run(
             task = progress.add_task(f"reading {path.name}", total=None)
             m = load_motion(path, rate=rate or None)
             learned = learn(r, corpus)
+            placement = placement or r.placement
             progress.update(task, description=f"placing {r.title} ({placement})")
             tried: list = []
             if placement == "optimize":

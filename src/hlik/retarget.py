@@ -23,7 +23,7 @@ def retarget(
     """Retarget ``motion`` to ``robot`` with ``solver``: a name in ``SOLVERS``, or a :class:`Solver`.
 
     The problem (human kinematics, placement, hand targets, human reference) is built once and
-    handed to the solver; ``placement`` defaults to :func:`hlik.problem.placement.reach_placement`.
+    handed to the solver; ``placement`` defaults to the robot's rule (``Robot.placement``).
     A custom solver may also return bare joint angles (T, n); its diagnostics are then unknown
     (one pass per frame, nothing failed).
 

@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 from hlik.human.kinematics import HumanKinematics, forward_kinematics
 from hlik.human.motion import HumanMotion, frame_period
-from hlik.problem.placement import Placement, reach_placement
+from hlik.problem.placement import Placement, placement_from_spec
 from hlik.problem.reference import HumanReference, human_reference
 from hlik.problem.targets import HandTargets, hand_targets
 from hlik.robot.model import Robot
@@ -40,10 +40,10 @@ class Problem:
 
 
 def build_problem(motion: HumanMotion, robot: Robot, placement: Placement | None = None) -> Problem:
-    """The problem of ``motion`` on ``robot``, placed at ``placement`` (default: by reachability,
-    :func:`~hlik.problem.placement.reach_placement`, as the paper)."""
+    """The problem of ``motion`` on ``robot``, placed at ``placement`` (default: the robot's own
+    rule, ``Robot.placement``: reachability as the paper, or the joint mapping's fit)."""
     human = forward_kinematics(motion)
-    placement = placement or reach_placement(robot, human)
+    placement = placement or placement_from_spec(robot.placement, robot, motion, human)
     return Problem(
         robot=robot,
         motion=motion,

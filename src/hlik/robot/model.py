@@ -26,6 +26,8 @@ VISUAL_GROUP, COLLISION_GROUP = 1, 3  # MJCF geom groups: what a viewer draws, w
 # Per arm: joint centres, the tracking TCP, and the frame whose velocity manipulability MAN^r reads
 # (``{side}_{Robot.manipulability_site}``; robots/README.md).
 SITES = ("shoulder", "elbow", "wrist", "tcp", "manipulability")
+# Placement rules a robot description may name as its default (hlik.problem.placement).
+PLACEMENT_RULES = ("reach", "mapped", "shoulders")
 
 
 @dataclass(frozen=True, eq=False)
@@ -48,6 +50,8 @@ class Robot:
         manipulability_site: Site suffix of the manipulability frame (``{side}_<suffix>``).
         manipulability_joints: Non-arm joints that count in each arm's manipulability chain,
             proximal to the arm (ARMAR-III's hip, as in the paper's IK).
+        placement: The placement rule used when none is given (``reach``, ``mapped``, ...; see
+            :mod:`hlik.problem.placement`), chosen per robot from measurements (robots/README.md).
     """
 
     name: str
@@ -65,6 +69,7 @@ class Robot:
     velocity_source: str = ""
     manipulability_site: str = "tcp"
     manipulability_joints: tuple[str, ...] = ()
+    placement: str = "reach"
 
     @property
     def dof(self) -> int:
@@ -214,7 +219,15 @@ def _build(path: Path, desc: dict) -> Robot:
         velocity_source=velocity_source,
         manipulability_site=manip_site,
         manipulability_joints=manip_joints,
+        placement=_placement_rule(path, desc),
     )
+
+
+def _placement_rule(path: Path, desc: dict) -> str:
+    rule = str(desc.get("placement", "reach"))
+    if rule not in PLACEMENT_RULES:
+        raise RobotError(f"{path}: placement {rule!r} is not one of {', '.join(PLACEMENT_RULES)}")
+    return rule
 
 
 def _velocity_limits(path: Path, desc: dict, names: tuple[str, ...]) -> tuple[np.ndarray, str]:
