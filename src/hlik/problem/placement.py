@@ -215,7 +215,8 @@ def placement_from_spec(
         x, y, yaw = (float(v) for v in spec.split(","))
     except ValueError:
         raise SettingsError(
-            f"placement {spec!r}: expected one of {', '.join(PLACEMENTS)} or X,Y,YAW (m, m, deg)"
+            f"placement {spec!r}: expected one of {', '.join(PLACEMENTS)}, X,Y,YAW (m, m, deg) or, in "
+            "hlik run, optimize (hlik.placement_search in Python)"
         ) from None
     height = shoulder_placement(robot, human).translation[2]
     return Placement(_rot_z(np.radians(yaw)), np.array([x, y, height]), spec)
