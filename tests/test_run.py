@@ -191,3 +191,14 @@ def test_failed_recording_leaves_nothing(tmp_path, monkeypatch):
     result = _invoke("--out", str(out))
     assert result.exit_code == 2 and "No space left" in result.stderr
     assert not any(p.suffix in (".rrd", ".tmp") for p in tmp_path.iterdir())
+
+
+def test_summary_reports_where_the_hands_lag():
+    from hlik.cli import LAG, _lag_spans
+
+    times = np.arange(50) * 0.01
+    fpos = np.zeros((50, 2))
+    fpos[10:20, 0] = 2 * LAG
+    fpos[30:35] = 3 * LAG
+    assert _lag_spans(fpos, times) == "0.10-0.19 s (left), 0.30-0.34 s (both); 15 frames"
+    assert _lag_spans(np.zeros((50, 2)), times) == ""

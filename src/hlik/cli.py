@@ -185,6 +185,26 @@ def run(
     )
 
 
+LAG = 0.05  # m: a hand this far off its target is reported as lagging
+
+
+def _lag_spans(fpos: np.ndarray, times: np.ndarray, shown: int = 3) -> str:
+    """The time spans where either hand is more than :data:`LAG` off its target, e.g.
+    ``"1.50-3.52 s (left), 4.00-4.20 s (both); 203 frames"``; empty if none."""
+    off = fpos > LAG  # (T, 2)
+    any_off = off.any(axis=1)
+    if not any_off.any():
+        return ""
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], any_off.astype(int), [0]])))
+    spans = []
+    for start, stop in zip(edges[::2], edges[1::2]):
+        left, right = bool(off[start:stop, 0].any()), bool(off[start:stop, 1].any())
+        which = "both" if left and right else ("left" if left else "right")
+        spans.append(f"{times[start]:.2f}-{times[stop - 1]:.2f} s ({which})")
+    more = f", {len(spans) - shown} more" if len(spans) > shown else ""
+    return f"{', '.join(spans[:shown])}{more}; {int(any_off.sum())} frames"
+
+
 def _check_writable(path: Path, create: bool) -> None:
     """Fail before solving, not after, when the output cannot be written."""
     folder = path.parent
@@ -231,6 +251,10 @@ def _run_summary(title: str, traj, motion, solve_time: float, rrd: Path, npz: Pa
         f"{int(np.count_nonzero(ev.collisions))} frames in self-collision; max joint speed "
         f"{ev.max_speed_ratio:.2f} x its limit",
     )
+    lag = _lag_spans(fpos, traj.times)
+    if lag:
+        reason = "out of reach or moving too fast"
+        table.add_row("lagging", f"hands > {100 * LAG:.0f} cm off their targets ({reason}): {lag}")
     off_pos, off_rot = relative_errors(traj.tcp_pos, traj.tcp_rot, traj.targets.pos, traj.targets.rot)
     table.add_row(
         "hands relative",
