@@ -22,6 +22,7 @@ from hlik.problem.placement import (
     placement_from_spec,
     reach_placement,
     shoulder_placement,
+    yaw_rotation,
 )
 from hlik.problem.problem import build_problem
 from hlik.problem.targets import HandTargets
@@ -31,15 +32,10 @@ from hlik.robot.state import robot_state
 from hlik.solvers import qp
 
 
-def _rot_z(angle: float) -> np.ndarray:
-    c, s = np.cos(angle), np.sin(angle)
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-
-
 def test_reach_placement_moves_and_turns_with_the_motion(takes):
     robot = load_robot("armar6")
     motion = load_motion(takes[1])
-    turn, shift = _rot_z(2.3), np.array([1.7, -3.1, 0.0])
+    turn, shift = yaw_rotation(2.3), np.array([1.7, -3.1, 0.0])
     moved = replace(
         motion,
         root_position=motion.root_position @ turn.T + shift,
@@ -59,7 +55,7 @@ def test_reach_placement_finds_a_base_where_every_hand_pose_is_reachable(name):
     robot = load_robot(name)
     motion = demo_motion().crop(1.0, 3.0).resample(10.0)
     state = robot_state(robot, joint_mapping(robot, motion))
-    truth = Placement(_rot_z(-0.8), np.array([0.9, 0.6, 0.0]))
+    truth = Placement(yaw_rotation(-0.8), np.array([0.9, 0.6, 0.0]))
     world = [truth.to_world(p) for p in (state.shoulder, state.elbow, state.wrist, state.tcp)]
     hands = HumanKinematics(*world, truth.rotation @ state.tcp_rot)
     found = reach_placement(robot, hands)
@@ -77,7 +73,7 @@ def test_mapped_placement_recovers_the_base_that_put_the_mapped_hands_there(name
     robot = load_robot(name)
     motion = demo_motion().crop(1.0, 3.0).resample(20.0)
     state = robot_state(robot, joint_mapping(robot, motion))
-    truth = Placement(_rot_z(2.5), np.array([-0.4, 1.3, 0.0]))
+    truth = Placement(yaw_rotation(2.5), np.array([-0.4, 1.3, 0.0]))
     world = [truth.to_world(p) for p in (state.shoulder, state.elbow, state.wrist, state.tcp)]
     found = mapped_placement(robot, motion, HumanKinematics(*world, truth.rotation @ state.tcp_rot))
     np.testing.assert_allclose(found.rotation, truth.rotation, atol=1e-9)
@@ -90,7 +86,7 @@ def test_mapped_placement_ignores_a_stretch_of_targets_carried_away():
     robot = load_robot("armar6")
     motion = demo_motion().crop(1.0, 3.0).resample(20.0)
     state = robot_state(robot, joint_mapping(robot, motion))
-    truth = Placement(_rot_z(0.7), np.array([0.2, -0.5, 0.0]))
+    truth = Placement(yaw_rotation(0.7), np.array([0.2, -0.5, 0.0]))
     world = [truth.to_world(p) for p in (state.shoulder, state.elbow, state.wrist, state.tcp)]
     away = slice(10, 18)
     world[3][away] += np.array([0.0, 2.0, 0.0])

@@ -17,7 +17,13 @@ from hlik.criteria.learned import Learned
 from hlik.human.kinematics import forward_kinematics
 from hlik.human.motion import HumanMotion
 from hlik.metrics import evaluate
-from hlik.problem.placement import Placement, mapped_placement, reach_placement, shoulder_placement
+from hlik.problem.placement import (
+    Placement,
+    mapped_placement,
+    reach_placement,
+    shoulder_placement,
+    yaw_rotation,
+)
 from hlik.retarget import retarget
 from hlik.robot.model import Robot
 from hlik.solvers.base import Solver
@@ -65,6 +71,4 @@ def optimize_placement(
 def _between(a: Placement, b: Placement, t: float) -> Placement:
     """The upright placement a fraction ``t`` of the way from ``a`` to ``b`` (shortest yaw)."""
     yaw = a.yaw + t * np.angle(np.exp(1j * (b.yaw - a.yaw)))
-    c, s = np.cos(yaw), np.sin(yaw)
-    rotation = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-    return Placement(rotation, (1 - t) * a.translation + t * b.translation, "between")
+    return Placement(yaw_rotation(yaw), (1 - t) * a.translation + t * b.translation, "between")

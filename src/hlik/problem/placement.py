@@ -1,7 +1,7 @@
 """Where the robot stands in the human's world: a rigid transform ``world <- robot base``.
 
-Two rules, both upright (a yaw about the vertical) with the base at the height that puts the
-robot's shoulders at the human's:
+The rules, all upright (a yaw about the vertical) with the base at the height that puts the
+robot's shoulders at the human's (``Robot.placement`` names each robot's default):
 
 - ``shoulders``: the midpoint of the robot's shoulders on the human's at the first frame, facing the
   same way (heading from the shoulder line, so a slouch or a turned pelvis does not tilt the robot).
@@ -9,6 +9,10 @@ robot's shoulders at the human's:
   left- and right-hand pose of the motion (Vahrenkamp et al. 2013; formulas.md §7): each candidate
   base pose (x, y, yaw) scores the minimum map entry over all hand poses, the scores are mean
   filtered, and the best candidate wins.
+- ``mapped``: where the joint-mapped human pose puts the robot's hands on the human's (a trimmed
+  least-squares fit over all frames).
+- ``X,Y,YAW``: given by the user (:func:`placement_from_spec`). ``optimize``, which retargets from
+  several of these, lives in :mod:`hlik.placement_search` (it needs a solver).
 """
 
 from __future__ import annotations
@@ -118,7 +122,7 @@ def reach_placement(
     score, offsets, yaws, frame = reach_scores(robot, human, reach, search)
     k, i = np.unravel_index(int(np.argmax(score)), score.shape)
     r0, c0 = frame
-    rotation = _rot_z(yaws[k]) @ r0
+    rotation = yaw_rotation(yaws[k]) @ r0
     return Placement(rotation, c0 + r0 @ offsets[i], "reach")
 
 
@@ -147,10 +151,10 @@ def reach_scores(
     yaws = np.arange(0.0, 2 * np.pi - 1e-9, search.yaw_step)
     ranked = np.empty((len(yaws), len(offsets), 2 * len(frames)), dtype=np.uint16)
     for k, yaw in enumerate(yaws):
-        r = _rot_z(yaw) @ r0  # world <- candidate base
+        r = yaw_rotation(yaw) @ r0  # world <- candidate base
         local = (pos - c0) @ r  # hand positions relative to the search origin, candidate axes
         base_rot = np.einsum("ji,nsjk->nsik", r, rot)
-        shift = offsets @ _rot_z(yaw)  # candidate origin in its own axes: Rz(-yaw) offset
+        shift = offsets @ yaw_rotation(yaw)  # candidate origin in its own axes: Rz(-yaw) offset
         entries = np.concatenate(
             [reach.lookup(s, local[None, :, s] - shift[:, None], base_rot[None, :, s]) for s in range(2)],
             axis=1,
@@ -186,7 +190,7 @@ def mapped_placement(robot: Robot, motion: HumanMotion, human: HumanKinematics |
         a_mean, b_mean = a[keep].mean(axis=0), b[keep].mean(axis=0)
         h = (a[keep] - a_mean).T @ (b[keep] - b_mean)
         yaw = np.arctan2(h[0, 1] - h[1, 0], h[0, 0] + h[1, 1])
-        rotation = _rot_z(yaw)
+        rotation = yaw_rotation(yaw)
         xy = b_mean - rotation[:2, :2] @ a_mean
         miss = np.linalg.norm(a @ rotation[:2, :2].T + xy - b, axis=-1)
         keep = miss <= max(2.0 * float(np.median(miss)), 0.05)
@@ -219,9 +223,10 @@ def placement_from_spec(
             "hlik run, optimize (hlik.placement_search in Python)"
         ) from None
     height = shoulder_placement(robot, human).translation[2]
-    return Placement(_rot_z(np.radians(yaw)), np.array([x, y, height]), spec)
+    return Placement(yaw_rotation(np.radians(yaw)), np.array([x, y, height]), spec)
 
 
-def _rot_z(angle: float) -> np.ndarray:
+def yaw_rotation(angle: float) -> np.ndarray:
+    """(3, 3) rotation by ``angle`` (rad) about the vertical z axis."""
     c, s = np.cos(angle), np.sin(angle)
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])

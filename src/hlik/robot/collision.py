@@ -89,3 +89,15 @@ def pair_distances(
     if not dists:
         return np.zeros(0), np.zeros((0, robot.dof))
     return np.array(dists), np.array(rows)
+
+
+def velocity_damper(
+    robot: Robot, data: mujoco.MjData, pairs: CollisionPairs, margin: float, detect: float, gain: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Rows (k, n) and bounds (k,) a step dq must meet, ``rows @ dq <= rhs``, to keep the pairs
+    closer than ``detect`` at least ``margin`` apart (m): each may approach by at most ``gain`` of
+    its distance to the margin, ``d + grad dq >= margin - (1 - gain)(d - margin)`` (mink's velocity
+    damper). ``data`` must hold the kinematics of the configuration (``mj_kinematics``)."""
+    mujoco.mj_comPos(robot.model, data)
+    dist, grad = pair_distances(robot, data, pairs, detect)
+    return -grad, gain * (dist - margin)

@@ -44,6 +44,13 @@ class JointBox:
     def clip(self, q: np.ndarray) -> np.ndarray:
         return np.clip(q, self.lower, self.upper)
 
+    def step_bounds(self, q: np.ndarray, max_step: float) -> tuple[np.ndarray, np.ndarray]:
+        """Bounds (n,) each on a step from ``q`` into the box, at most ``max_step`` per joint; a
+        joint outside the box may only move back (0 is always allowed)."""
+        lower = np.minimum(np.maximum(self.lower - q, -max_step), 0.0)
+        upper = np.maximum(np.minimum(self.upper - q, max_step), 0.0)
+        return lower, upper
+
 
 FrameSolver = Callable[[int, Sample, np.ndarray, JointBox], FrameResult]
 

@@ -27,7 +27,6 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 
-import daqp
 import mujoco
 import numpy as np
 
@@ -36,11 +35,12 @@ from hlik.criteria.base import Sample, Term
 from hlik.criteria.functional import fORI, fORI_off, target_terms
 from hlik.criteria.learned import Learned, learn
 from hlik.problem.problem import Problem
-from hlik.robot.collision import CollisionPairs, collision_pairs, pair_distances
+from hlik.robot.collision import CollisionPairs, collision_pairs, velocity_damper
 from hlik.robot.model import Robot
 from hlik.robot.state import RobotState, robot_state
 from hlik.solvers.base import ConfiguredSolver, SolverResult
 from hlik.solvers.frames import FrameResult, JointBox, iterate, track
+from hlik.solvers.qp import solve_qp
 
 
 @dataclass(frozen=True)
@@ -210,11 +210,8 @@ def avoiding_least_norm(
     """
     w = np.minimum(weights, 1e6)
     hessian = jac.T @ jac + damping**2 * np.diag(w)
-    sense = np.zeros(len(lower) + len(rhs), dtype=np.int32)
-    up = np.concatenate([upper, rhs])
-    lo = np.concatenate([lower, np.full(len(rhs), -1e30)])
-    x, _, exitflag, _ = daqp.solve(hessian, -jac.T @ xdot, rows, up, lo, sense)
-    return np.asarray(x) if exitflag > 0 and np.all(np.isfinite(x)) else None
+    x = solve_qp(hessian, -jac.T @ xdot, lower, upper, "daqp", rows, rhs)
+    return x if x is not None and np.all(np.isfinite(x)) else None
 
 
 def _fraction_within(rows: np.ndarray, rhs: np.ndarray, x: np.ndarray, v: np.ndarray) -> float:
@@ -243,8 +240,7 @@ def _avoiding_step(
     Rows that cannot all be met within the box are relaxed to "come no closer"; if even that fails,
     the task step is zero.
     """
-    lower = np.minimum(np.maximum(box.lower - q, -settings.max_step), 0.0)
-    upper = np.maximum(np.minimum(box.upper - q, settings.max_step), 0.0)
+    lower, upper = box.step_bounds(q, settings.max_step)
     for bounds in (rhs, np.maximum(rhs, 0.0)):
         task = avoiding_least_norm(jac, xdot, weights, damping, rows, bounds, lower, upper)
         if task is not None:
@@ -329,10 +325,9 @@ def step(
     null, null_bound = bounded(null_step(jac, task))
     dq = bound(task + null, settings.max_step)
     if pairs is not None and len(pairs) and np.all(np.isfinite(dq)):
-        mujoco.mj_comPos(robot.model, data)  # the kinematics of q are in data (robot_state)
-        dist, dist_grad = pair_distances(robot, data, pairs, settings.collision_detect)
-        # the QP's velocity damper: d + grad dq >= margin - (1 - gain)(d - margin)
-        rows, rhs = -dist_grad, settings.collision_gain * (dist - settings.collision_margin)
+        rows, rhs = velocity_damper(  # the kinematics of q are in data (robot_state)
+            robot, data, pairs, settings.collision_margin, settings.collision_detect, settings.collision_gain
+        )
         if np.any(rows @ dq > rhs + 1e-9):
             task, null = _avoiding_step(jac, xdot, weights, damping, rows, rhs, q, box, settings, null_step)
             null, null_bound = bounded(null)

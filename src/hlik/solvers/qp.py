@@ -24,7 +24,7 @@ from hlik.criteria.functional import target_terms
 from hlik.criteria.learned import Learned, learn
 from hlik.criteria.smoothness import smoothness_terms
 from hlik.problem.problem import Problem
-from hlik.robot.collision import CollisionPairs, collision_pairs, pair_distances
+from hlik.robot.collision import CollisionPairs, collision_pairs, velocity_damper
 from hlik.robot.model import Robot
 from hlik.robot.state import robot_state
 from hlik.solvers.base import ConfiguredSolver, SolverResult
@@ -161,28 +161,26 @@ def step(
         a = np.vstack(rows)
         hessian = hessian + a.T @ a
         gradient += a.T @ np.concatenate(errors)
-    lower, upper = (robot.lower, robot.upper) if box is None else (box.lower, box.upper)
-    lb = np.minimum(np.maximum(lower - q, -settings.max_step), 0.0)  # q outside the box moves back
-    ub = np.maximum(np.minimum(upper - q, settings.max_step), 0.0)
+    lb, ub = (box or JointBox(robot.lower, robot.upper)).step_bounds(q, settings.max_step)
     a_ineq, b_ineq = np.zeros((0, robot.dof)), np.zeros(0)
     if pairs is not None and len(pairs):
-        mujoco.mj_comPos(robot.model, data)  # the kinematics of q are in data (robot_state)
-        dist, grad = pair_distances(robot, data, pairs, settings.collision_detect)
-        # d + grad dq >= margin - (1 - gain)(d - margin): approach by at most gain (d - margin)
-        a_ineq, b_ineq = -grad, settings.collision_gain * (dist - settings.collision_margin)
-    dq = _solve(hessian, gradient, lb, ub, settings.solver, a_ineq, b_ineq)
+        a_ineq, b_ineq = velocity_damper(  # the kinematics of q are in data (robot_state)
+            robot, data, pairs, settings.collision_margin, settings.collision_detect, settings.collision_gain
+        )
+    dq = solve_qp(hessian, gradient, lb, ub, settings.solver, a_ineq, b_ineq)
     if dq is None and len(b_ineq):
         # too close already and boxed in: at least come no closer
-        dq = _solve(hessian, gradient, lb, ub, settings.solver, a_ineq, np.maximum(b_ineq, 0.0))
+        dq = solve_qp(hessian, gradient, lb, ub, settings.solver, a_ineq, np.maximum(b_ineq, 0.0))
     if dq is None or not np.all(np.isfinite(dq)):
         return np.zeros(robot.dof)  # infeasible or failed step: stay (limits hold, nothing NaN)
     return dq
 
 
-def _solve(
+def solve_qp(
     hessian, gradient, lb, ub, solver: str, a_ineq: np.ndarray, b_ineq: np.ndarray
 ) -> np.ndarray | None:
-    """min 1/2 x'Hx + g'x subject to lb <= x <= ub and a_ineq x <= b_ineq."""
+    """min 1/2 x'Hx + g'x subject to lb <= x <= ub and a_ineq x <= b_ineq; None if the solver
+    fails (infeasible)."""
     if solver != "daqp":
         g = a_ineq if len(b_ineq) else None
         h = b_ineq if len(b_ineq) else None
