@@ -29,6 +29,16 @@ def test_ee_pose_stack_is_the_qp_default():
     assert load_stack("ee_pose").settings("qp") == QPSettings()
 
 
+def test_a_solver_gamma_table_overrides_the_stack_gamma_for_that_solver_alone(tmp_path):
+    path = tmp_path / "mine.toml"
+    path.write_text("[gamma]\nSYN = 3.0\nEEA = 1.0\n[slsqp.gamma]\nSYN = 8.0\n")
+    stack = load_stack(path)
+    assert dict(stack.settings("slsqp").gamma) == {"SYN": 8.0, "EEA": 1.0}
+    assert dict(stack.settings("jv").gamma) == {"SYN": 3.0, "EEA": 1.0}
+    # on top of the solver's own: the QP doubles HJA_r's Table II gamma
+    assert dict(stack.settings("qp").gamma) == {"HJA_r": 4.0, "SYN": 3.0, "EEA": 1.0}
+
+
 def test_relative_stack_scales_criteria_by_ten():
     pose, relative = load_stack("ee_pose"), load_stack("relative_pose")
     assert relative.scenario == "relative"
@@ -52,6 +62,8 @@ def test_with_criteria_replaces_the_list():
         ("[qp]\nposition_cost = 'high'", "qp.position_cost must be a number"),
         ("[qp]\nspeed = 1.0", "unknown key 'speed' in [qp]"),
         ("[gamma]\nSYN = true", "gamma.SYN must be a number"),
+        ("[qp.gamma]\nXYZ = 1.0", "unknown criteria XYZ"),
+        ("[qp]\ngamma = 3", "[qp.gamma] must be a table"),
         ("[qp]\nself_collision = 1", "qp.self_collision must be true or false"),
         ("colour = 'red'", "unknown key 'colour' in the top level"),
         ("scenario = ", "not valid TOML"),
@@ -85,7 +97,8 @@ def test_stack_slsqp_settings_are_the_papers():
 
     assert load_stack("paper_opt").settings("slsqp") == SLSQPSettings()  # the paper's OPT
     tuned = load_stack("ee_pose").settings("slsqp")
-    assert replace(tuned, criterion=10.0, ftol_rel=1e-6) == SLSQPSettings()
+    assert dict(tuned.gamma) == {"SYN": 4.5, "HJA_r": 8.0}  # hlik's, beside the paper's weights
+    assert replace(tuned, gamma={}, ftol_rel=1e-6) == SLSQPSettings()
     relative = load_stack("relative_pose").settings("slsqp")
     assert replace(relative, ftol_rel=1e-6) == SLSQPSettings.relative()
 

@@ -35,7 +35,7 @@ from hlik.criteria.base import Sample, Term
 from hlik.criteria.functional import fORI, fORI_off, target_terms
 from hlik.criteria.learned import Learned, learn
 from hlik.problem.problem import Problem
-from hlik.robot.collision import CollisionPairs, collision_pairs, velocity_damper
+from hlik.robot.collision import CollisionPairs, DistanceBounds, collision_pairs, velocity_damper
 from hlik.robot.model import Robot
 from hlik.robot.state import RobotState, robot_state
 from hlik.solvers.base import ConfiguredSolver, SolverResult
@@ -289,10 +289,11 @@ def step(
     data: mujoco.MjData | None = None,
     box: JointBox | None = None,
     pairs: CollisionPairs | None = None,
+    bounds: DistanceBounds | None = None,
 ) -> tuple[np.ndarray, Memory]:
     """One JV step from ``q`` (n,) within ``box`` (default: the joint limits), keeping the collision
-    ``pairs`` apart (:func:`avoiding_least_norm`, if given): the joint change dq (n,), before
-    clipping, and the new memory.
+    ``pairs`` apart (:func:`avoiding_least_norm`, if given; ``bounds`` carried across steps): the
+    joint change dq (n,), before clipping, and the new memory.
 
     The null-space bound halves whenever the null-space step reverses: the steep H (and the
     criteria) make bounded gradient steps of a fixed size zig-zag across their minimum, so a frame
@@ -326,7 +327,13 @@ def step(
     dq = bound(task + null, settings.max_step)
     if pairs is not None and len(pairs) and np.all(np.isfinite(dq)):
         rows, rhs = velocity_damper(  # the kinematics of q are in data (robot_state)
-            robot, data, pairs, settings.collision_margin, settings.collision_detect, settings.collision_gain
+            robot,
+            data,
+            pairs,
+            settings.collision_margin,
+            settings.collision_detect,
+            settings.collision_gain,
+            bounds,
         )
         if np.any(rows @ dq > rhs + 1e-9):
             task, null = _avoiding_step(jac, xdot, weights, damping, rows, rhs, q, box, settings, null_step)
@@ -359,6 +366,7 @@ def solve(
     criteria = criterion_terms(robot, settings, learned)
     data = mujoco.MjData(robot.model)
     pairs = collision_pairs(robot) if settings.self_collision else None
+    bounds = DistanceBounds(pairs) if pairs is not None else None
     memory: Memory | None = None
 
     def solve_frame(k: int, frame: Sample, q: np.ndarray, box: JointBox) -> FrameResult:
@@ -372,9 +380,8 @@ def solve(
         def jv_step(x: np.ndarray) -> np.ndarray:
             nonlocal memory
             assert memory is not None
-            dq, memory = step(
-                robot, first if k == 0 else tasks, criteria, x, frame, settings, memory, data, box, pairs
-            )
+            stack = first if k == 0 else tasks
+            dq, memory = step(robot, stack, criteria, x, frame, settings, memory, data, box, pairs, bounds)
             return dq
 
         return iterate(jv_step, q, box, settings.max_iter * (10 if k == 0 else 1), settings.tol)

@@ -29,7 +29,7 @@ from hlik.criteria.learned import Learned, learn
 from hlik.criteria.smoothness import ACCELERATION, JERK, VELOCITY, Smoothness
 from hlik.errors import SettingsError
 from hlik.problem.problem import Problem
-from hlik.robot.collision import CollisionPairs, collision_pairs, pair_distances
+from hlik.robot.collision import CollisionPairs, DistanceBounds, collision_pairs, pair_distances
 from hlik.robot.model import Robot
 from hlik.robot.state import robot_state
 from hlik.solvers.base import ConfiguredSolver, SolverResult
@@ -293,13 +293,14 @@ class _CollisionConstraint:
     def __init__(self, robot: Robot, pairs: CollisionPairs, settings: SLSQPSettings):
         self.robot, self.pairs, self.settings = robot, pairs, settings
         self.data = mujoco.MjData(robot.model)
+        self.bounds = DistanceBounds(pairs)
 
     def __call__(self, result: np.ndarray, q: np.ndarray, grad: np.ndarray) -> None:
         s, m = self.settings, self.robot.model
         self.data.qpos[:] = q
         mujoco.mj_kinematics(m, self.data)
         mujoco.mj_comPos(m, self.data)
-        dist, jac = pair_distances(self.robot, self.data, self.pairs, s.collision_detect)
+        dist, jac = pair_distances(self.robot, self.data, self.pairs, s.collision_detect, self.bounds)
         order = np.argsort(dist)[: s.collision_pairs]
         result[:] = s.collision_margin - s.collision_detect  # absent pairs: far, met
         result[: len(order)] = s.collision_margin - dist[order]

@@ -2,9 +2,9 @@
 
 A stack file names the scenario (``pose``: both TCPs follow the hands; ``relative``: the relative pose
 of the hands), the criteria to add, optionally a ``[gamma]`` table overriding a criterion's Table II
-gamma, and one table of settings per
-solver (``[qp]``, ``[jv]``, ``[slsqp]``, the fields of that solver's settings class). Each added
-criterion weighs ``gamma_i * criterion weight / len(criteria)``, as in the paper.
+gamma, and one table of settings per solver (``[qp]``, ``[jv]``, ``[slsqp]``, the fields of that
+solver's settings class; a ``[qp.gamma]`` table overrides ``[gamma]`` for that solver alone). Each
+added criterion weighs ``gamma_i * criterion weight / len(criteria)``, as in the paper.
 """
 
 from __future__ import annotations
@@ -55,12 +55,10 @@ class Stack:
     def settings(self, solver: str):
         """The settings object of ``solver`` (``qp``, ``jv``, ``slsqp``) for this stack."""
         cls = settings_class(solver)
-        return cls(
-            criteria=self.criteria,
-            scenario=self.scenario,
-            gamma=self.gamma,
-            **self.solvers.get(solver, {}),
-        )
+        table = dict(self.solvers.get(solver, {}))
+        solver_gamma: Mapping[str, float] = table.pop("gamma", {})  # type: ignore[assignment]
+        gamma = MappingProxyType({**cls().gamma, **self.gamma, **solver_gamma})  # onto the solver's own
+        return cls(criteria=self.criteria, scenario=self.scenario, gamma=gamma, **table)
 
 
 def settings_class(solver: str) -> type:
@@ -115,27 +113,38 @@ def _parse(raw: dict, path: Path) -> Stack:
     if not isinstance(criteria, list) or not all(isinstance(c, str) for c in criteria):
         raise HlikError(f'{path}: criteria must be a list of names, e.g. ["SYN", "HJA_r"]')
     _check_criteria(tuple(criteria), path)
-    gamma = {}
-    for name, value in raw.get("gamma", {}).items():
-        _check_criteria((name,), path)
-        gamma[name] = _number(value, path, f"gamma.{name}")
+    gamma = _gamma(raw.get("gamma", {}), path, "gamma")
     solvers = {}
     for solver in (s for s in SOLVER_TABLES if s in raw):
         table = raw[solver]
         if not isinstance(table, dict):
             raise HlikError(f"{path}: [{solver}] must be a table")
         fields = {f.name: f for f in dataclasses.fields(settings_class(solver))}
-        _check_keys(table, set(fields) - {"criteria", "scenario", "gamma"}, path, f"[{solver}]")
+        _check_keys(table, set(fields) - {"criteria", "scenario"}, path, f"[{solver}]")
         solvers[solver] = MappingProxyType(
-            {k: _value(v, fields[k].default, path, f"{solver}.{k}") for k, v in table.items()}
+            {
+                k: _gamma(v, path, f"{solver}.gamma")
+                if k == "gamma"
+                else _value(v, fields[k].default, path, f"{solver}.{k}")
+                for k, v in table.items()
+            }
         )
     return Stack(
         name=str(raw.get("name", path.stem)),
         scenario=scenario,
         criteria=tuple(criteria),
-        gamma=MappingProxyType(gamma),
+        gamma=gamma,
         solvers=MappingProxyType(solvers),
     )
+
+
+def _gamma(table: object, path: Path, where: str) -> Mapping[str, float]:
+    """A ``[gamma]`` table (criterion name -> number), checked."""
+    if not isinstance(table, dict):
+        raise HlikError(f"{path}: [{where}] must be a table of criterion = number")
+    for name in table:
+        _check_criteria((name,), path)
+    return MappingProxyType({name: _number(v, path, f"{where}.{name}") for name, v in table.items()})
 
 
 def _check_keys(table: dict, allowed: set[str], path: Path, where: str) -> None:
