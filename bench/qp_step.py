@@ -1,44 +1,35 @@
-"""One QP step on ARMAR-6: hlik's stacked QP against a plain mink.solve_ik, same frames, one process.
+"""Whole QP frames on ARMAR-6: hlik's stacked QP against plain mink.solve_ik, same frames, one process.
 
-hlik: both TCP pose terms, smoothness, two criteria (SYN, HJA_r) and the joint limits.
-mink: two FrameTasks, a PostureTask and ConfigurationLimit (daqp for both).
-Run by hand: ``python bench/qp_step.py``; the last line is ``ratio hlik/mink: X.XX`` (median time per
-step, hlik over mink). The machine has 2 shared cores: read medians and ratios, not absolutes.
+Both solve every frame of 2 s of the demo to convergence with the same stopping rule (steps of
+at most 20, until no joint moves more than 1e-4 rad), each frame starting from the previous
+solution. hlik: ``qp.solve`` with both TCP pose terms, smoothness, SYN and HJA_r and the joint
+limits, self-collision avoidance off (mink's stack below has none; a third line shows hlik with
+it). mink: two FrameTasks, a PostureTask to the robot's home and ConfigurationLimit (daqp both).
+Run by hand: ``python bench/qp_step.py``; the last line is ``ratio hlik/mink: X.XX`` (median CPU
+time per frame, hlik over mink). The machine has 2 shared cores: read medians and ratios.
 """
 
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 
 import mink
-import mujoco
 import numpy as np
 
 import hlik
 from hlik.criteria.learned import learn
-from hlik.human.kinematics import forward_kinematics
 from hlik.paths import demo_motion_path
-from hlik.problem.placement import shoulder_placement
-from hlik.problem.reference import human_reference
-from hlik.problem.targets import hand_targets
-from hlik.solvers.frames import sample_at
-from hlik.solvers.qp import Assembly, QPSettings, build_terms, step
+from hlik.problem.problem import build_problem
+from hlik.solvers.qp import QPSettings, solve
 
-REPEATS = 5
+REPEATS = 3
+MAX_ITER, TOL = 20, 1e-4
 
 
-def main() -> None:
-    robot = hlik.load_robot("armar6")
-    motion = hlik.load_motion(demo_motion_path(), rate=100.0).crop(2.0, 4.0)
-    human = forward_kinematics(motion)
-    placement = shoulder_placement(robot, human)
-    targets = hand_targets(human, placement)
-    settings = QPSettings(criteria=("SYN", "HJA_r"))
-    terms = Assembly(build_terms(robot, settings, learn(robot)), robot.dof, settings.damping)
-    ref = human_reference(robot, motion, placement)
-    q0 = hlik.retarget(motion, robot).q  # JM poses as the configurations stepped from
-
-    data = mujoco.MjData(robot.model)
+def mink_frames(problem) -> tuple[np.ndarray, np.ndarray]:
+    """CPU seconds (T,) and steps (T,) per frame of mink.solve_ik iterated to convergence."""
+    robot, targets = problem.robot, problem.targets
     config = mink.Configuration(robot.model)
     tcp = [
         mink.FrameTask(f"{s}_tcp", "site", position_cost=10.0, orientation_cost=2.0)
@@ -47,30 +38,51 @@ def main() -> None:
     posture = mink.PostureTask(robot.model, cost=1e-2)
     posture.set_target(robot.home)
     limits = [mink.ConfigurationLimit(robot.model)]
-
-    def hlik_step(k: int) -> None:
-        frame = sample_at(ref, targets, k, np.tile(q0[k], (3, 1)), 0.01)
-        step(robot, terms, q0[k], frame, settings, data)
-
-    def mink_step(k: int) -> None:
-        config.update(q0[k])
+    config.update(robot.home)
+    seconds, steps = [], []
+    for k in range(problem.n_frames):
+        start = time.process_time()
         for i, task in enumerate(tcp):
             rot = mink.SO3.from_matrix(targets.rot[k, i])
             task.set_target(mink.SE3.from_rotation_and_translation(rot, targets.pos[k, i]))
-        mink.solve_ik(config, [*tcp, posture], dt=0.01, solver="daqp", limits=limits)
+        n = 0
+        while n < MAX_ITER:
+            dq = mink.solve_ik(config, [*tcp, posture], dt=1.0, solver="daqp", limits=limits)
+            config.integrate_inplace(dq, 1.0)
+            n += 1
+            if np.max(np.abs(dq)) < TOL:
+                break
+        seconds.append(time.process_time() - start)
+        steps.append(n)
+    return np.array(seconds), np.array(steps)
 
-    times = {"hlik": [], "mink": []}
+
+def hlik_frames(problem, settings, learned) -> tuple[float, np.ndarray]:
+    """CPU seconds per frame (mean over the run) and steps per frame of hlik's QP."""
+    start = time.process_time()
+    result = solve(problem, settings, learned)
+    return (time.process_time() - start) / problem.n_frames, result.diagnostics.iterations
+
+
+def main() -> None:
+    robot = hlik.load_robot("armar6")
+    motion = hlik.load_motion(demo_motion_path(), rate=100.0).crop(2.0, 4.0)
+    problem = build_problem(motion, robot)
+    learned = learn(robot)
+    plain = QPSettings(criteria=("SYN", "HJA_r"), self_collision=False, max_iter=MAX_ITER, tol=TOL)
+    runs: dict[str, list[float]] = {"mink": [], "hlik": [], "hlik + collisions": []}
+    steps: dict[str, float] = {}
     for _ in range(REPEATS):
-        for name, fun in (("mink", mink_step), ("hlik", hlik_step)):
-            for k in range(motion.n_frames):
-                start = time.perf_counter()
-                fun(k)
-                times[name].append(time.perf_counter() - start)
-    med = {k: float(np.median(v)) for k, v in times.items()}
-    for name in ("mink", "hlik"):
-        print(
-            f"{name}: {1 / med[name]:8.0f} steps/s  (median {1e3 * med[name]:.3f} ms over {len(times[name])})"
-        )
+        seconds, n = mink_frames(problem)
+        runs["mink"].append(float(np.mean(seconds[1:])))
+        steps["mink"] = float(np.mean(n[1:]))
+        for name, settings in (("hlik", plain), ("hlik + collisions", replace(plain, self_collision=True))):
+            per_frame, n = hlik_frames(problem, settings, learned)
+            runs[name].append(per_frame)
+            steps[name] = float(np.mean(n[1:]))
+    med = {k: float(np.median(v)) for k, v in runs.items()}
+    for name, value in med.items():
+        print(f"{name:18s} {1e3 * value:7.2f} ms/frame (CPU, median of {REPEATS}), {steps[name]:.1f} steps")
     print(f"ratio hlik/mink: {med['hlik'] / med['mink']:.2f}")
 
 

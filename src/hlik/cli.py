@@ -39,6 +39,14 @@ CorpusOpt = Annotated[
 ScenarioOpt = Annotated[
     str, typer.Option(help="Functional score: pose (hand poses) or relative (relative pose of the hands).")
 ]
+MetricOpt = Annotated[
+    Path | None,
+    typer.Option(
+        help="Weights and x0 of m_hl from a TOML file (e.g. study/metric.toml of `hlik study`); "
+        "default: the paper's Table III.",
+        show_default=False,
+    ),
+]
 
 
 def _fail(err: HlikError) -> None:
@@ -89,6 +97,7 @@ def run(
             show_default=False,
         ),
     ] = None,
+    metric: MetricOpt = None,
 ) -> None:
     """Retarget a motion to a robot; write a Rerun recording and the trajectory (.npz) beside it."""
     from rich.progress import (
@@ -101,6 +110,7 @@ def run(
     )
 
     from hlik.criteria.learned import learn
+    from hlik.criteria.unified import load_metric
     from hlik.human.load import load_motion
     from hlik.metrics import evaluate as evaluate_trajectory
     from hlik.placement_search import optimize_placement
@@ -132,6 +142,7 @@ def run(
         if rate < 0:
             raise HlikError(f"--rate must be positive (or 0 to keep the motion's rate), got {rate:g}")
         r = load_robot(robot)
+        unified_metric = load_metric(metric) if metric is not None else None
         named = () if task_stack.name == "ee_pose" else (task_stack.name,)
         tag = "_".join((solver, *named, *chosen))
         rrd = out or Path("recordings") / f"{path.stem}_{r.name}_{tag}.rrd"
@@ -167,7 +178,7 @@ def run(
             progress.update(task, completed=m.n_frames)
             solve_time = time.perf_counter() - start
             progress.update(task, description="evaluating the criteria")
-            ev = evaluate_trajectory(traj, r, learned, scenario=scenario)
+            ev = evaluate_trajectory(traj, r, learned, scenario=scenario, metric=unified_metric)
             progress.update(task, description=f"writing {rrd}")
             npz = traj.save(rrd.with_suffix(".npz"))
             write_recording(rrd, traj, r, layout=layout, metrics=ev.curves())
@@ -271,28 +282,31 @@ def evaluate(
     json_out: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
     corpus: CorpusOpt = None,
     scenario: ScenarioOpt = "pose",
+    metric: MetricOpt = None,
 ) -> None:
     """Human-likeness criteria h_i and scores m_i, m_hl, m_f and m_hl,f of a trajectory."""
     import json
 
     from hlik.criteria.learned import learn
-    from hlik.criteria.unified import midpoints
+    from hlik.criteria.unified import load_metric, midpoints
     from hlik.metrics import evaluate as evaluate_trajectory
     from hlik.robot.model import load_robot
     from hlik.trajectory import load_trajectory
 
     try:
         _check_scenario(scenario)
+        unified_metric = load_metric(metric) if metric is not None else None
         traj = load_trajectory(trajectory)
         r = load_robot(traj.robot)
-        ev = evaluate_trajectory(traj, r, learn(r, corpus), scenario=scenario)
+        ev = evaluate_trajectory(traj, r, learn(r, corpus), scenario=scenario, metric=unified_metric)
     except HlikError as e:
         _fail(e)
     if json_out:
         sys.stdout.write(json.dumps(ev.to_json(), indent=2) + "\n")
         return
-    x0 = midpoints(scenario)
-    table = Table("criterion", "mean h", "x0", "m", title=f"{trajectory.name}: {traj.robot}, {traj.solver}")
+    x0 = midpoints(scenario, ev.metric)
+    title = f"{trajectory.name}: {traj.robot}, {traj.solver}; weights and x0: {ev.metric.source}"
+    table = Table("criterion", "mean h", "x0", "m", title=title)
     for k in x0:
         table.add_row(k, f"{ev.h[k].mean():.4g}", f"{x0[k]:g}", f"{ev.m[k]:.3f}")
     console.print(table)
@@ -335,6 +349,101 @@ def _check_scenario(scenario: str) -> None:
 
     if scenario not in FUNCTIONAL_X0:
         raise HlikError(f"unknown scenario {scenario!r}; choose one of: {', '.join(FUNCTIONAL_X0)}")
+
+
+@app.command()
+def study(
+    takes: Annotated[
+        Path | None,
+        typer.Argument(
+            help="Folder of MMM takes (default: ../shared/motion_data/kit_bimanual if present, "
+            "else the bundled demo).",
+            show_default=False,
+        ),
+    ] = None,
+    robots: Annotated[str, typer.Option(help="Robots, comma-separated.")] = "armar3,armar6,dual_panda",
+    out: Annotated[Path, typer.Option("--out", "-o", help="Output folder (cells, metric, report).")] = Path(
+        "study"
+    ),
+    approaches: Annotated[
+        Path | None,
+        typer.Option(help="Approach file (default: the paper's, hlik/study/paper.toml).", show_default=False),
+    ] = None,
+    seconds: Annotated[
+        float | None,
+        typer.Option(
+            help="Retarget this many seconds of each take, after the first (default: all).",
+            show_default=False,
+        ),
+    ] = None,
+    workers: Annotated[
+        int | None,
+        typer.Option(
+            help="Parallel Ray workers (default: all cores; 1: in this process).", show_default=False
+        ),
+    ] = None,
+    address: Annotated[
+        str | None, typer.Option(help="Join this Ray cluster (e.g. ray://host:10001).", show_default=False)
+    ] = None,
+    corpus: CorpusOpt = None,
+) -> None:
+    """The paper's study: retarget, correlate the criteria, derive the metric, rank the approaches."""
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+    from hlik.robot.model import available_robots
+    from hlik.study.approaches import PAPER, load_approaches
+    from hlik.study.runner import plan, run_study
+
+    folder = takes or _default_takes()
+    try:
+        if seconds is not None and seconds <= 0:
+            raise HlikError(f"--seconds must be positive, got {seconds:g}")
+        if workers is not None and workers < 1:
+            raise HlikError(f"--workers must be at least 1, got {workers}")
+        files = sorted(folder.glob("*.xml")) if folder.is_dir() else [folder]
+        if not files or not all(f.is_file() for f in files):
+            raise HlikError(f"{folder}: no MMM takes (*.xml)")
+        names = [r.strip() for r in robots.split(",") if r.strip()]
+        unknown = [r for r in names if r not in available_robots()]
+        if unknown or not names:
+            raise HlikError(f"unknown robot {unknown[0] if unknown else robots!r}; see `hlik robots`")
+        listed = load_approaches(approaches or PAPER)
+        n_cells = len(plan(files, names, listed, seconds))
+        console.print(
+            f"study: {len(files)} takes x {len(names)} robots x {len(listed)} approaches = "
+            f"{n_cells} cells -> {out}/"
+        )
+        columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn())
+        with Progress(*columns, console=Console(stderr=True), transient=True) as progress:
+            task = progress.add_task("cells", total=n_cells)
+            advance = lambda o: progress.update(task, advance=1, description=o.cell.file_name[:48])  # noqa: E731
+            result = run_study(files, names, listed, out, seconds, workers, address, advance, corpus)
+    except HlikError as e:
+        _fail(e)
+    failed = [o for o in result.outcomes if o.error]
+    for o in failed:
+        console.print(f"[yellow]failed[/yellow] {o.cell.file_name}: {o.error}", highlight=False)
+    for ranking in result.rankings:
+        table = Table(
+            "approach", "m_hl", "m_f", "m_hl,f", title=f"best approaches, {ranking.scenario} scenario"
+        )
+        for r in ranking.rows[:5]:
+            table.add_row(r["approach"], f"{r['m_hl']:.3f}", f"{r['m_f']:.3f}", f"{r['m_hl_f']:.3f}")
+        console.print(table)
+    reused = sum(o.reused for o in result.outcomes)
+    console.print(
+        f"{len(result.outcomes)} cells ({reused} reused, {len(failed)} failed) in "
+        f"{result.wall_seconds:.0f} s; metric: {result.metric_file} (hlik run/evaluate --metric); "
+        f"report: {result.report}"
+    )
+
+
+def _default_takes() -> Path:
+    """The shared KIT takes beside the checkout (or under HLIK_DATA), else the bundled demo."""
+    data = os.environ.get("HLIK_DATA")
+    candidates = [Path(data) / "kit_bimanual"] if data else []
+    candidates.append(Path.cwd().parent / "shared" / "motion_data" / "kit_bimanual")
+    return next((c for c in candidates if c.is_dir()), demo_motion_path())
 
 
 @app.command()

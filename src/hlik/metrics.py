@@ -36,6 +36,7 @@ class Evaluation:
         scenario: ``pose`` (end-effector poses) or ``relative`` (relative pose of the hands).
         speed_ratio: (T - 1,) each step's largest joint speed over that joint's limit (> 1: too fast).
         collisions: (T,) True where the robot touches itself (:func:`hlik.robot.model.self_contacts`).
+        metric: The weights and x0 the scores used (Table III unless another was given).
     """
 
     h: MappingProxyType
@@ -46,6 +47,7 @@ class Evaluation:
     scenario: str
     speed_ratio: np.ndarray
     collisions: np.ndarray
+    metric: unified.Metric
 
     @property
     def max_speed_ratio(self) -> float:
@@ -54,7 +56,7 @@ class Evaluation:
 
     def curves(self) -> dict[str, np.ndarray]:
         """Criterion name -> (T,) per-frame score f_x0(h_i(t)), the curves m_i averages."""
-        x0 = unified.midpoints(self.scenario)
+        x0 = unified.midpoints(self.scenario, self.metric)
         return {k: unified.logistic(self.h[k], x0[k]) for k in self.m}
 
     def to_json(self) -> dict:
@@ -69,6 +71,7 @@ class Evaluation:
             "scenario": self.scenario,
             "collisions": int(np.count_nonzero(self.collisions)),
             "max_speed_ratio": self.max_speed_ratio,
+            "metric": self.metric.source,
         }
 
 
@@ -94,15 +97,22 @@ def costs(traj: Trajectory, robot: Robot, learned: Learned) -> dict[str, np.ndar
 
 
 def evaluate(
-    traj: Trajectory, robot: Robot, learned: Learned, scenario: str = "pose", alpha: float = unified.ALPHA
+    traj: Trajectory,
+    robot: Robot,
+    learned: Learned,
+    scenario: str = "pose",
+    alpha: float = unified.ALPHA,
+    metric: unified.Metric | None = None,
 ) -> Evaluation:
-    """Costs, scores and the unified metric of ``traj`` (scenario ``pose`` or ``relative``)."""
+    """Costs, scores and the unified metric of ``traj`` (scenario ``pose`` or ``relative``), with
+    ``metric``'s weights and x0 (default Table III's)."""
     if scenario not in unified.FUNCTIONAL_X0:
         raise SettingsError(f"scenario must be one of {tuple(unified.FUNCTIONAL_X0)}, got {scenario!r}")
     h = costs(traj, robot, learned)
-    x0 = unified.midpoints(scenario)
+    metric = metric or unified.Metric.table3()
+    x0 = unified.midpoints(scenario, metric)
     m = {k: unified.score(h[k], x0[k]) for k in x0}
-    m_hl, m_f = unified.hierarchical(m), unified.functional(m, scenario)
+    m_hl, m_f = unified.hierarchical(m, metric), unified.functional(m, scenario)
     return Evaluation(
         h=MappingProxyType(h),
         m=MappingProxyType(m),
@@ -112,6 +122,7 @@ def evaluate(
         scenario=scenario,
         speed_ratio=speed_ratios(traj, robot),
         collisions=collision_frames(traj, robot),
+        metric=metric,
     )
 
 

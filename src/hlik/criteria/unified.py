@@ -1,17 +1,28 @@
 """The unified metric: logistic normalisation (paper Eq. 1), m_hl (Eq. 2), m_f and m_hl,f.
 
 Each criterion carries its own Table II gamma and Table III x0 and weight
-(:mod:`hlik.criteria.registry`); the functional criteria's x0 depend on the scenario (Sec. V).
+(:mod:`hlik.criteria.registry`); the functional criteria's x0 depend on the scenario (Sec. V). A
+:class:`Metric` holds another set of weights and x0 (one a study derived), read from and written to
+TOML; :meth:`Metric.table3` is the paper's.
 """
 
 from __future__ import annotations
 
+import sys
 from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
 from types import MappingProxyType
 
 import numpy as np
 
 from hlik.criteria import registry
+from hlik.errors import HlikError
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
 
 # Sec. V: functional criteria and their mid-points, per scenario.
 FUNCTIONAL_X0: Mapping[str, Mapping[str, float]] = MappingProxyType(
@@ -25,10 +36,10 @@ FUNCTIONAL_X0: Mapping[str, Mapping[str, float]] = MappingProxyType(
 ALPHA = 0.5
 
 
-def midpoints(scenario: str = "pose") -> dict[str, float]:
-    """x0 of every criterion scored in ``scenario``: the human-likeness ones, then the functional ones."""
-    x0 = {name: registry.criterion_class(name).x0 for name in registry.human_likeness()}
-    return {**x0, **FUNCTIONAL_X0[scenario]}
+def midpoints(scenario: str = "pose", metric: Metric | None = None) -> dict[str, float]:
+    """x0 of every criterion scored in ``scenario``: the human-likeness ones (``metric``'s, default
+    Table III's), then the functional ones."""
+    return {**(metric or Metric.table3()).x0, **FUNCTIONAL_X0[scenario]}
 
 
 def gamma(name: str, overrides: Mapping[str, float] | None = None) -> float:
@@ -49,9 +60,90 @@ def score(h: np.ndarray, x0: float) -> float:
     return float(np.mean(logistic(h, x0)))
 
 
-def hierarchical(m: Mapping[str, float]) -> float:
-    """m_hl = sum_i w_i m_i (Eq. 2) over the human-likeness criteria (Table III weights)."""
-    return float(sum(registry.criterion_class(k).weight * m[k] for k in registry.human_likeness()))
+@dataclass(frozen=True)
+class Metric:
+    """Weights w_i (Eq. 2, summing to 1) and mid-points x0_i (Eq. 1) of the human-likeness criteria.
+
+    Attributes:
+        weights: Criterion name -> w_i.
+        x0: Criterion name -> x0_i, in the units of the criterion's cost h_i.
+        source: Where they come from (``Table III`` or the study that derived them).
+    """
+
+    weights: Mapping[str, float]
+    x0: Mapping[str, float]
+    source: str = "Table III"
+
+    @classmethod
+    def table3(cls) -> Metric:
+        """The paper's: every registered criterion's own Table III weight and x0."""
+        names = registry.human_likeness()
+        return cls(
+            MappingProxyType({k: registry.criterion_class(k).weight for k in names}),
+            MappingProxyType({k: registry.criterion_class(k).x0 for k in names}),
+        )
+
+    def to_toml(self) -> str:
+        """The TOML text :func:`load_metric` reads back exactly."""
+        lines = [f"source = {_toml_string(self.source)}", "", "[weights]"]
+        lines += [f"{k} = {v!r}" for k, v in self.weights.items()]
+        lines += ["", "[x0]"] + [f"{k} = {v!r}" for k, v in self.x0.items()]
+        return "\n".join(lines) + "\n"
+
+
+def _toml_string(text: str) -> str:
+    return '"' + text.replace("\\", "\\\\").replace('"', '\\"') + '"'
+
+
+def load_metric(path: Path) -> Metric:
+    """A :class:`Metric` from a TOML file (``[weights]`` and ``[x0]`` tables, ``source``).
+
+    Every registered human-likeness criterion needs a weight and a positive x0; the weights are
+    non-negative and sum to 1 (within 1e-6).
+
+    Raises:
+        HlikError: one line naming the file and the problem.
+    """
+    path = Path(path)
+    try:
+        raw = tomllib.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise HlikError(f"{path}: no such metric file") from None
+    except (OSError, UnicodeDecodeError) as e:
+        raise HlikError(f"{path}: cannot read ({e})") from None
+    except tomllib.TOMLDecodeError as e:
+        raise HlikError(f"{path}: not valid TOML ({e})") from None
+    names = registry.human_likeness()
+    tables = {}
+    for key in ("weights", "x0"):
+        table = raw.get(key)
+        if not isinstance(table, dict):
+            raise HlikError(f"{path}: needs a [{key}] table of criterion = number")
+        missing, unknown = set(names) - set(table), set(table) - set(names)
+        if missing or unknown:
+            what = (
+                f"missing {', '.join(sorted(missing))}"
+                if missing
+                else f"unknown {', '.join(sorted(unknown))}"
+            )
+            raise HlikError(f"{path}: [{key}] {what}")
+        for k, v in table.items():
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v):
+                raise HlikError(f"{path}: {key}.{k} must be a number, not {v!r}")
+        tables[key] = {k: float(table[k]) for k in names}
+    if any(v < 0 for v in tables["weights"].values()) or abs(sum(tables["weights"].values()) - 1.0) > 1e-6:
+        raise HlikError(f"{path}: [weights] must be non-negative and sum to 1")
+    if any(v <= 0 for v in tables["x0"].values()):
+        raise HlikError(f"{path}: [x0] must be positive")
+    source = raw.get("source", path.name)
+    return Metric(MappingProxyType(tables["weights"]), MappingProxyType(tables["x0"]), str(source))
+
+
+def hierarchical(m: Mapping[str, float], metric: Metric | None = None) -> float:
+    """m_hl = sum_i w_i m_i (Eq. 2) over the human-likeness criteria (``metric``'s weights, default
+    Table III's)."""
+    weights = (metric or Metric.table3()).weights
+    return float(sum(weights[k] * m[k] for k in registry.human_likeness()))
 
 
 def functional(m: Mapping[str, float], scenario: str = "pose") -> float:

@@ -1,0 +1,209 @@
+"""`hlik study`: the approach file, the analysis against hand-computed values, a tiny study end to
+end (Parquet schema, resume, failures) and the derived metric's round trip through the CLI."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+import pytest
+from typer.testing import CliRunner
+
+from hlik.cli import app
+from hlik.criteria import registry
+from hlik.criteria.unified import Metric, load_metric
+from hlik.errors import HlikError
+from hlik.paths import demo_motion_path
+from hlik.study.analysis import hierarchy_weights, spearman, ward
+from hlik.study.approaches import Approach, load_approaches
+from hlik.study.runner import plan, run_cells, run_study
+
+NAMES = registry.human_likeness()
+
+
+def _linkage(merges):
+    """SciPy linkage from (a, b, height) merges, with the member counts filled in."""
+    n = len(merges) + 1
+    size = {i: 1 for i in range(n)}
+    z = []
+    for k, (a, b, h) in enumerate(merges):
+        size[n + k] = size[a] + size[b]
+        z.append([a, b, h, size[n + k]])
+    return np.array(z, dtype=float)
+
+
+def test_the_papers_dendrogram_gives_table_iii():
+    """formulas.md §10: five top-level groups (merges within 0.15 of each other above the cut-off)
+    give 1/5, 1/20, 1/15 and 1/30, Table III's weights."""
+    i = {n: k for k, n in enumerate(NAMES)}
+    z = _linkage(
+        [
+            (i["HJA_r"], i["SYN_r"], 0.2),  # 11, below the cut-off: one cluster
+            (i["EEA"], i["SOA_x"], 0.3),  # 12
+            (12, i["SOA_q"], 0.4),  # 13
+            (13, i["EEA_r"], 0.5),  # 14: {EEA, SOA_x, SOA_q, EEA_r}
+            (i["SYN"], 11, 0.8),  # 15
+            (i["HJL"], 15, 0.85),  # 16: within 0.15 of 15 -> HJL, SYN, {HJA_r, SYN_r}
+            (14, 16, 1.05),  # 17: 0.2 above 16, so 16 stays one child
+            (i["MIS"], 17, 1.1),  # 18
+            (i["MJE"], 18, 1.15),  # 19
+            (i["MAN_r"], 19, 1.2),  # root: MAN_r, MJE, MIS, 14, 16
+        ]
+    )
+    weights = hierarchy_weights(z, NAMES)
+    assert weights == pytest.approx(dict(Metric.table3().weights))
+    assert sum(weights.values()) == pytest.approx(1.0)
+
+
+def test_weights_split_a_cluster_below_the_cut_off_equally_and_sum_to_one():
+    z = _linkage([(0, 1, 0.1), (2, 11, 0.2)] + [(k, 12 + k - 3, 1.0 + 0.3 * k) for k in range(3, 11)])
+    weights = hierarchy_weights(z, NAMES)
+    assert weights[NAMES[0]] == weights[NAMES[1]] == weights[NAMES[2]]
+    assert sum(weights.values()) == pytest.approx(1.0)
+
+
+def test_spearman_matches_the_rank_formula():
+    """No ties: rho = 1 - 6 sum d^2 / (n (n^2 - 1)); x and y differ by swapped neighbours."""
+    x, y = np.array([1.0, 2, 3, 4, 5]), np.array([2.0, 1, 4, 3, 5])
+    table = pa.table({"h_a": x, "h_b": y, "h_c": np.full(5, 0.3)})
+    c = spearman(table, ("a", "b", "c"))
+    assert c[0, 1] == pytest.approx(1 - 6 * 4 / (5 * 24))  # 0.8
+    assert c[0, 2] == 0.0 and c[2, 2] == 1.0  # a constant column: uncorrelated, not NaN
+
+
+def test_ward_merges_by_the_lance_williams_update():
+    """d(a, b) = 0.2, d(a, c) = d(b, c) = 1: {a, b} at 0.2, then c at sqrt((2 + 2 - 0.04) / 3)."""
+    c = 1.0 - np.array([[0, 0.2, 1.0], [0.2, 0, 1.0], [1.0, 1.0, 0]])
+    z = ward(c)
+    assert z[:, 2] == pytest.approx([0.2, np.sqrt(3.96 / 3)])
+    assert sorted(z[0, :2]) == [0, 1] and sorted(z[1, :2]) == [2, 3]  # {a, b} first, then c
+
+
+def test_the_papers_approach_file():
+    approaches = load_approaches()
+    names = [a.name for a in approaches]
+    assert len(names) == len(set(names))
+    corr = [a for a in approaches if a.correlation]
+    assert {a.solver for a in corr} == {"jm", "jv", "slsqp", "qp"}
+    assert all(len(a.criteria) <= 1 for a in corr) and len(corr) == 1 + 3 * (1 + len(NAMES))
+    assert {"slsqp+SYN+HJA_r", "qp+SYN+SYN_r", "jv+HJA_r+SOA_q", "slsqp (relative)"} <= set(names)
+    assert all(a.stack == "paper_opt" for a in approaches if a.scenario == "pose")
+
+
+@pytest.mark.parametrize(
+    "text, problem",
+    [
+        ("[correlation]\nsolvers = ['jm', 'ik']", "unknown solver 'ik'"),
+        ("[evaluation]\nsolvers = ['qp']\npairs = [['SYN', 'XYZ']]", "unknown criterion 'XYZ'"),
+        ("[evaluation]\nsolvers = ['qp']\nscenarios = ['side']", "unknown scenario 'side'"),
+        ("[extra]\na = 1", "unknown table 'extra'"),
+    ],
+)
+def test_bad_approach_files_name_the_file_and_the_problem(tmp_path, text, problem):
+    path = tmp_path / "mine.toml"
+    path.write_text(text)
+    with pytest.raises(HlikError, match="mine.toml") as err:
+        load_approaches(path)
+    assert problem in str(err.value)
+
+
+TINY = (Approach("jm", correlation=True), Approach("qp", correlation=True), Approach("qp", ("SYN", "HJA_r")))
+
+
+@pytest.fixture(scope="module")
+def tiny(tmp_path_factory):
+    out = tmp_path_factory.mktemp("study")
+    result = run_study([demo_motion_path()], ["dual_panda"], TINY, out, seconds=1.0, workers=1)
+    return out, result
+
+
+def test_a_tiny_study_writes_cells_metric_and_report(tiny):
+    out, result = tiny
+    cells = sorted((out / "cells").glob("*.parquet"))
+    assert len(cells) == 3 and not any(o.error for o in result.outcomes)
+    table = pq.read_table(cells[0])
+    expected = {f"h_{n}" for n in (*NAMES, *registry.functional())}
+    expected |= {"take", "robot", "approach", "frame", "time", "fpos_left", "fpos_right", "iterations"}
+    expected |= {"converged", "failed", "solve_time", "collision", "speed_ratio", "scenario", "solver"}
+    assert set(table.schema.names) == expected
+    assert table.num_rows == 101 and np.all(np.isfinite(table.column("h_SYN").to_numpy()))
+    assert sum(result.metric.weights.values()) == pytest.approx(1.0)
+    assert all(v > 0 for v in result.metric.x0.values())
+    assert {p.name for p in out.glob("*.png")} == {"correlation.png", "dendrogram.png", "scores_pose.png"}
+    html = (out / "report.html").read_text()
+    assert "Table III" in html and "qp+SYN+HJA_r" in html and html.count("data:image/png;base64") == 3
+    rows = result.rankings[0].rows
+    assert [r["m_hl_f"] for r in rows] == sorted((r["m_hl_f"] for r in rows), reverse=True)
+    for r in rows:  # Eq. 2 with the derived weights, m_f of the pose scenario
+        assert r["m_hl"] == pytest.approx(sum(result.metric.weights[k] * r["m"][k] for k in NAMES))
+        assert r["m_f"] == pytest.approx(np.mean([r["m"][k] for k in ("fJLA", "fPOS", "fORI")]))
+
+
+def test_a_rerun_reuses_every_cell_and_redoes_only_a_lost_one(tiny):
+    out, _ = tiny
+    cells = sorted((out / "cells").glob("*.parquet"))
+    before = {p: p.stat().st_mtime_ns for p in cells}
+    cells[1].unlink()
+    (out / "cells" / f".{cells[1].name}.abc.tmp").write_bytes(b"half a cell")  # a killed write
+    result = run_study([demo_motion_path()], ["dual_panda"], TINY, out, seconds=1.0, workers=1)
+    assert sum(not o.reused for o in result.outcomes) == 1
+    assert cells[1].exists() and all(p.stat().st_mtime_ns == before[p] for p in cells if p != cells[1])
+
+
+def test_a_failing_cell_is_listed_not_fatal(tmp_path):
+    bad = tmp_path / "broken.xml"
+    bad.write_text("<MMM><Motion name='x'>")
+    outcomes = run_cells(plan([bad], ["dual_panda"], TINY[:1], 1.0), tmp_path / "cells", workers=1)
+    assert outcomes[0].error and "broken.xml" in outcomes[0].error and outcomes[0].path is None
+    assert not list((tmp_path / "cells").glob("*"))
+
+
+def test_the_derived_metric_round_trips_through_hlik_evaluate(tiny, tmp_path):
+    out, result = tiny
+    assert load_metric(out / "metric.toml") == result.metric
+    npz = tmp_path / "demo.rrd"
+    runner = CliRunner()
+    run = runner.invoke(
+        app, ["run", "--robot", "dual_panda", "--out", str(npz), "--metric", str(out / "metric.toml")]
+    )
+    assert run.exit_code == 0, run.output
+    ev = runner.invoke(
+        app, ["evaluate", str(npz.with_suffix(".npz")), "--json", "--metric", str(out / "metric.toml")]
+    )
+    assert ev.exit_code == 0, ev.output
+    data = json.loads(ev.stdout)
+    m = {k: v["m"] for k, v in data["metrics"].items()}
+    assert data["m_hl"] == pytest.approx(sum(result.metric.weights[k] * m[k] for k in NAMES))
+    assert data["metric"] == result.metric.source
+
+
+@pytest.mark.parametrize(
+    "text, problem",
+    [
+        ("[weights]\nEEA = 1.0\n[x0]\nEEA = 0.3", "[weights] missing"),
+        (
+            "\n".join(["[weights]", *(f"{n} = 0.5" for n in NAMES), "[x0]", *(f"{n} = 1.0" for n in NAMES)]),
+            "sum to 1",
+        ),
+    ],
+)
+def test_bad_metric_files_name_the_file_and_the_problem(tmp_path, text, problem):
+    path = tmp_path / "m.toml"
+    path.write_text(text)
+    with pytest.raises(HlikError, match="m.toml") as err:
+        load_metric(path)
+    assert problem in str(err.value)
+
+
+def test_ray_gives_the_in_process_result(tiny, tmp_path):
+    pytest.importorskip("ray")
+    out, _ = tiny
+    result = run_study([demo_motion_path()], ["dual_panda"], TINY, tmp_path, seconds=1.0, workers=2)
+    for path in sorted((out / "cells").glob("*.parquet")):
+        a, b = pq.read_table(path), pq.read_table(tmp_path / "cells" / path.name)
+        for name in a.schema.names:
+            if name != "solve_time":
+                assert a.column(name).equals(b.column(name)), name
+    assert not any(o.error for o in result.outcomes)
