@@ -43,9 +43,6 @@ def main() -> None:
     problem = build_problem(motion, robot)
     learned = learn(robot)
     rows = {}
-    print(
-        f"{'criterion':10s} {'analytic ms':>11s} {'fd ms':>8s} {'speedup':>8s} {'/cheapest':>9s}", flush=True
-    )
     for name in ["none", *args.criteria.split(",")]:
         criteria = () if name == "none" else (name,)
         times: dict[str, list[float]] = {"analytic": [], "fd": []}

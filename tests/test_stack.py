@@ -97,8 +97,7 @@ def test_stack_slsqp_settings_are_the_papers():
 
     assert load_stack("paper_opt").settings("slsqp") == SLSQPSettings()  # the paper's OPT
     tuned = load_stack("ee_pose").settings("slsqp")
-    assert dict(tuned.gamma) == {"SYN": 4.5, "HJA_r": 8.0}  # hlik's, beside the paper's weights
-    assert replace(tuned, gamma={}, ftol_rel=1e-6) == SLSQPSettings()
+    assert replace(tuned, criterion=10.0, ftol_rel=1e-6) == SLSQPSettings()
     relative = load_stack("relative_pose").settings("slsqp")
     assert replace(relative, ftol_rel=1e-6) == SLSQPSettings.relative()
 

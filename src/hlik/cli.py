@@ -257,14 +257,16 @@ def _run_summary(title: str, traj, motion, solve_time: float, rrd: Path, npz: Pa
             f"fPOS mean {100 * fpos[:, i].mean():.1f} cm, max {100 * fpos[:, i].max():.1f} cm; "
             f"fORI mean {np.degrees(fori[:, i].mean()):.1f}°, max {np.degrees(fori[:, i].max()):.1f}°",
         )
-    table.add_row(
-        "body",
-        f"{int(np.count_nonzero(ev.collisions))} frames in self-collision; max joint speed "
-        f"{ev.max_speed_ratio:.2f} x its limit",
+    speed = ev.max_speed_ratio
+    speeds = (
+        f"joint speeds within their limits (at most {speed:.2f} of one)"
+        if speed <= 1.0 + 1e-6
+        else f"max joint speed {speed:.2f} x its limit"
     )
+    table.add_row("body", f"{int(np.count_nonzero(ev.collisions))} frames in self-collision; {speeds}")
     lag = _lag_spans(fpos, traj.times)
     if lag:
-        reason = "out of reach or moving too fast"
+        reason = "out of reach, too fast for the speed limits, or outweighed by the criteria"
         table.add_row("lagging", f"hands > {100 * LAG:.0f} cm off their targets ({reason}): {lag}")
     off_pos, off_rot = relative_errors(traj.tcp_pos, traj.tcp_rot, traj.targets.pos, traj.targets.rot)
     table.add_row(

@@ -56,6 +56,9 @@ EULER = "xzy"  # extrinsic sequence of the hand orientation angles (module docst
 _UP = np.array([0.0, 0.0, 1.0])
 _MIRROR = np.array([-1.0, 1.0, 1.0])  # x -> -x
 _SIDE_SIGN = np.array([-1.0, 1.0])  # left Ψ = -Ψ_raw, right Ψ = Ψ_raw
+# bound on |dh_EEA/dq| (rad^-1): swivel_jacobian's 20 rad/rad over π (the paper caps the elevation
+# gradients, Sec. IV-A); the gradient grows without bound near the singularities
+GRADIENT_CAP = 20.0 / np.pi
 
 # The printed Zanchettin coefficients (RAM 2013, Eq. 3), in the terms they were printed in.
 _PUBLISHED: dict[str, Any] = {
@@ -87,9 +90,21 @@ FEATURES = (
 
 
 def _unit(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    norm = np.linalg.norm(v, axis=-1, keepdims=True)
+    norm = np.sqrt(np.einsum("...i,...i->...", v, v))
     with np.errstate(invalid="ignore", divide="ignore"):
-        return v / norm, norm[..., 0]
+        return v / norm[..., None], norm
+
+
+def _cross(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """u x v over the last axis (np.cross costs ten times more on these small arrays)."""
+    return np.stack(
+        [
+            u[..., 1] * v[..., 2] - u[..., 2] * v[..., 1],
+            u[..., 2] * v[..., 0] - u[..., 0] * v[..., 2],
+            u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0],
+        ],
+        axis=-1,
+    )
 
 
 def _swivel_parts(shoulder: np.ndarray, elbow: np.ndarray, wrist: np.ndarray):
@@ -99,12 +114,12 @@ def _swivel_parts(shoulder: np.ndarray, elbow: np.ndarray, wrist: np.ndarray):
     n, a_norm = _unit(a)
     c = n @ _UP  # cos of the axis' angle to the vertical
     r, sigma = _unit(_UP - c[..., None] * n)
-    t = np.cross(n, r)
-    x = np.sum(b * r, axis=-1)
-    y = np.sum(b * t, axis=-1)
-    z = np.sum(b * n, axis=-1)
+    t = _cross(n, r)
+    x = np.einsum("...i,...i->...", b, r)
+    y = np.einsum("...i,...i->...", b, t)
+    z = np.einsum("...i,...i->...", b, n)
     eps2 = x**2 + y**2  # squared distance of the elbow from the shoulder -> wrist axis
-    scale = a_norm + np.linalg.norm(b, axis=-1)
+    scale = a_norm + np.sqrt(np.einsum("...i,...i->...", b, b))
     singular = (sigma < _SINGULAR) | (np.sqrt(eps2) < _SINGULAR * scale) | ~(scale > 0)
     psi_raw = np.where(singular, np.nan, np.arctan2(y, x))
     return psi_raw, singular, n, r, t, x, y, z, eps2, c, sigma, a_norm
@@ -123,13 +138,20 @@ def swivel_weight(shoulder: np.ndarray, elbow: np.ndarray, wrist: np.ndarray) ->
     wrist axis and s = the sine of that axis' angle to the vertical, multiplied (0.94 at 0.2, 0.5
     at 0.1, 0.01 at 0.03).
     """
-    _, singular, *_, eps2, _, sigma, _ = _swivel_parts(shoulder, elbow, wrist)
-    upper2 = np.sum(np.square(np.asarray(elbow, float) - np.asarray(shoulder, float)), axis=-1)
+    return swivel_angle_and_weight(shoulder, elbow, wrist)[1]
+
+
+def swivel_angle_and_weight(
+    shoulder: np.ndarray, elbow: np.ndarray, wrist: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`swivel_angle` and :func:`swivel_weight` (each (..., 2)) from one pass."""
+    psi_raw, singular, *_, eps2, _, sigma, _ = _swivel_parts(shoulder, elbow, wrist)
+    b = np.asarray(elbow, float) - np.asarray(shoulder, float)
     with np.errstate(invalid="ignore", divide="ignore"):
-        s_elbow2 = eps2 / upper2
+        s_elbow2 = eps2 / np.einsum("...i,...i->...", b, b)
     fade4 = _FADE**4
     weight = s_elbow2**2 / (s_elbow2**2 + fade4) * sigma**4 / (sigma**4 + fade4)
-    return np.where(singular, 0.0, weight)
+    return (_SIDE_SIGN * psi_raw) % TWO_PI, np.where(singular, 0.0, weight)
 
 
 def swivel_gradient(
@@ -201,6 +223,16 @@ def _arm_frame(shoulder: np.ndarray, tcp_pos: np.ndarray, tcp_rot: np.ndarray):
     return p, rot
 
 
+def euler_xzy(rot: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Extrinsic x-z-y Euler angles (each (...,)) of rotations (..., 3, 3): R = R_y(c) R_z(b) R_x(a),
+    b in [-π/2, π/2]; SciPy's ``as_euler("xzy")`` away from its gimbal lock (b = ±π/2), in closed
+    form (SciPy's object costs more than the whole criterion here)."""
+    a = np.arctan2(-rot[..., 1, 2], rot[..., 1, 1])
+    b = np.arcsin(np.clip(rot[..., 1, 0], -1.0, 1.0))
+    c = np.arctan2(-rot[..., 2, 0], rot[..., 0, 0])
+    return a, b, c
+
+
 @dataclass(frozen=True, eq=False)
 class SwivelPredictor:
     """Ψ_human = coef · features(hand pose), Zanchettin's regressor structure (formulas.md §1.2).
@@ -220,9 +252,7 @@ class SwivelPredictor:
         :data:`EULER` angles of the TCP orientation.
         """
         p, rot = _arm_frame(shoulder, tcp_pos, tcp_rot)
-        shape = rot.shape[:-2]
-        eul = Rotation.from_matrix(rot.reshape(-1, 3, 3)).as_euler(EULER).reshape(*shape, 3)
-        th, ph, ps = eul[..., 0], eul[..., 1], eul[..., 2]
+        th, ph, ps = euler_xzy(rot)
         x, y, z = p[..., 0], p[..., 1], p[..., 2]
         cols = [
             np.ones_like(th),
@@ -293,6 +323,49 @@ class SwivelPredictor:
         return cls(coef), float(np.sqrt(np.mean(err**2)))
 
 
+# --- exact derivatives of the prediction and the weight (SLSQP, JV) ----------------------------
+
+_EPS = 1e-6
+_AXES = np.concatenate([np.eye(3), -np.eye(3)])  # +x, +y, +z, -x, -y, -z
+
+
+def prediction_jacobian(predictor: SwivelPredictor, state: RobotState, eps: float = _EPS) -> np.ndarray:
+    """dΨ_human/dq (F, 2, n): central differences of the closed-form prediction in the TCP position
+    relative to the shoulder and in a small world-frame rotation of the TCP (12 evaluations of the
+    regressor, one vectorised call, no kinematics), chained through the site Jacobians. The
+    differences are wrapped, so Ψ's 2π cut does not show."""
+    if state.jac is None:
+        raise ValueError("prediction_jacobian needs a RobotState with Jacobians (jacobians=True)")
+    step = eps * _AXES[:, None, None, :]  # (6, 1, 1, 3)
+    n = len(state.q)
+    # world-frame turns, left-multiplied: the angular rows of the site Jacobian are world-frame
+    turns = Rotation.from_rotvec(eps * _AXES).as_matrix()[:, None, None]  # (6, 1, 1, 3, 3)
+    pos = np.concatenate([state.tcp[None] + step, np.broadcast_to(state.tcp, (6, n, 2, 3))])
+    rot = np.concatenate([np.broadcast_to(state.tcp_rot, (6, n, 2, 3, 3)), turns @ state.tcp_rot[None]])
+    psi = predictor.predict(np.broadcast_to(state.shoulder, pos.shape), pos, rot)  # (12, F, 2)
+    d = wrap(psi[[0, 1, 2, 6, 7, 8]] - psi[[3, 4, 5, 9, 10, 11]]) / (2 * eps)  # (6, F, 2)
+    jac = state.jac
+    rel = jac[:, :, 3, :3, :] - jac[:, :, 0, :3, :]  # TCP relative to the shoulder
+    return np.einsum("kfa,fakn->fan", d[:3], rel) + np.einsum("kfa,fakn->fan", d[3:], jac[:, :, 3, 3:, :])
+
+
+def weight_jacobian(state: RobotState, eps: float = _EPS) -> np.ndarray:
+    """d swivel_weight / dq (F, 2, n): central differences in the wrist and elbow positions
+    relative to the shoulder (it depends on nothing else), chained through the site Jacobians."""
+    if state.jac is None:
+        raise ValueError("weight_jacobian needs a RobotState with Jacobians (jacobians=True)")
+    step = eps * _AXES[:, None, None, :]  # (6, 1, 1, 3)
+    n = len(state.q)
+    wrist = np.concatenate([state.wrist[None] + step, np.broadcast_to(state.wrist, (6, n, 2, 3))])
+    elbow = np.concatenate([np.broadcast_to(state.elbow, (6, n, 2, 3)), state.elbow[None] + step])
+    w = swivel_weight(np.broadcast_to(state.shoulder, wrist.shape), elbow, wrist)  # (12, F, 2)
+    d = (w[[0, 1, 2, 6, 7, 8]] - w[[3, 4, 5, 9, 10, 11]]) / (2 * eps)  # (6, F, 2): d/da, d/db
+    jac = state.jac
+    d_a = jac[:, :, 2, :3, :] - jac[:, :, 0, :3, :]
+    d_b = jac[:, :, 1, :3, :] - jac[:, :, 0, :3, :]
+    return np.einsum("kfa,fakn->fan", d[:3], d_a) + np.einsum("kfa,fakn->fan", d[3:], d_b)
+
+
 # --- the criterion ---------------------------------------------------------------------------
 
 
@@ -323,14 +396,15 @@ class EEA(Criterion):
 
     e = :func:`swivel_weight` · wrap(Ψ - Ψ_human) / π: toward a stretched arm or a vertical
     shoulder -> wrist axis the residual and its row of the Jacobian fade to 0, as there is no
-    elevation to compare. The prediction and the weight are held fixed in the Jacobian (formulas.md
-    §9); each factor of the weight is above 0.99 beyond 19° from its singularity.
+    elevation to compare. The prediction and the weight are held fixed in :meth:`jacobian` (the
+    QP's Gauss-Newton step, formulas.md §9); each factor of the weight is above 0.99 beyond 19° from
+    its singularity. :meth:`gradient` (SLSQP, JV) is exact: it adds the prediction's and the
+    weight's derivatives (:func:`prediction_jacobian`, :func:`weight_jacobian`), its norm capped at
+    :data:`GRADIENT_CAP` as the paper caps the elevation gradients (Sec. IV-A).
     """
 
     name, gamma, x0, weight = "EEA", 4.0, 0.3, 1 / 20
-    # the prediction is held fixed; SLSQP's cap mirrors the Jacobian's on dPsi/dq (20 rad/rad, over pi;
-    # the paper caps the elevation gradients, Sec. IV-A)
-    exact_jacobian, numeric_gradient_cap = False, 20.0 / np.pi
+    exact_jacobian = False  # jacobian() holds the prediction and the weight fixed; gradient() is exact
     needs_sample = False
 
     def __init__(self, robot: object, learned: Learned):
@@ -341,8 +415,7 @@ class EEA(Criterion):
         return self.swivel.predict(state.shoulder, state.tcp, state.tcp_rot)
 
     def residual(self, state, sample):
-        psi = swivel_angle(state.shoulder, state.elbow, state.wrist)
-        weight = swivel_weight(state.shoulder, state.elbow, state.wrist)
+        psi, weight = swivel_angle_and_weight(state.shoulder, state.elbow, state.wrist)
         return weight * np.nan_to_num(eea_residual(psi, self.target(state, sample, psi)))
 
     def jacobian(self, state, sample):
@@ -355,6 +428,19 @@ class EEA(Criterion):
     def cost_gradient(self, e):
         return np.sign(e) / e.shape[-1]
 
+    def target_jacobian(self, state: RobotState, sample: object, psi: np.ndarray) -> np.ndarray:
+        """d target / dq (F, 2, n)."""
+        return prediction_jacobian(self.swivel, state)
+
+    def gradient(self, state, sample):
+        psi, weight = swivel_angle_and_weight(state.shoulder, state.elbow, state.wrist)
+        r = np.nan_to_num(eea_residual(psi, self.target(state, sample, psi)))
+        d_psi = swivel_jacobian(state) - self.target_jacobian(state, sample, psi)
+        jac = weight_jacobian(state) * r[..., None] + weight[..., None] * d_psi / np.pi  # (1, 2, n)
+        h, dh_de = self.metric((weight * r)[0])
+        g = dh_de @ jac[0]
+        return h, g * min(1.0, GRADIENT_CAP / max(float(np.linalg.norm(g)), 1e-300))
+
 
 class EEA_r(EEA):  # noqa: N801 - the paper's name
     """EEA^r: as EEA, toward whichever of Ψ_human and the recorded human's Ψ_MMM is nearer."""
@@ -364,3 +450,8 @@ class EEA_r(EEA):  # noqa: N801 - the paper's name
 
     def target(self, state, sample, psi):
         return eea_r_target(psi, super().target(state, sample, psi), sample.psi_mmm)
+
+    def target_jacobian(self, state, sample, psi):
+        human = super().target(state, sample, psi)
+        moving = eea_r_target(psi, human, sample.psi_mmm) == human  # the recorded Ψ_MMM does not move
+        return np.where(moving[..., None], super().target_jacobian(state, sample, psi), 0.0)

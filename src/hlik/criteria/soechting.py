@@ -13,7 +13,10 @@ is positive S_y on the left and negative on the right). Decision: s_x is wrapped
 which contains MMM's S_x range, so a slightly backward upper arm gives a small negative s_x.
 
 In the QP the prediction is held fixed within a step (formulas.md §9): the residual Jacobians are
-the elbow position Jacobian (SOA_x) and selection rows (SOA_q).
+the elbow position Jacobian (SOA_x) and selection rows (SOA_q). SLSQP and JV take the exact
+gradient (:meth:`SOA_x.gradient`): the prediction's derivative with respect to the wrist offset,
+central differences of the closed-form model in those 3 coordinates (no kinematics), chained
+through the shoulder and wrist Jacobians.
 """
 
 from __future__ import annotations
@@ -83,6 +86,32 @@ def predict_arm(
     f = f * _MIRROR
     elbow = np.asarray(shoulder, float) + l_u[:, None] * u
     return elbow, mmm_angles(u, f)
+
+
+def prediction_derivatives(
+    shoulder: np.ndarray, wrist: np.ndarray, l_u: np.ndarray, l_f: np.ndarray, eps: float = 1e-6
+) -> tuple[np.ndarray, np.ndarray]:
+    """d elbow_pred / d wrist and d angles / d wrist, each (..., 2, 3, 3) (output, wrist coordinate),
+    the shoulder held (``d / d shoulder`` is ``I - `` the first, ``-`` the second).
+
+    Central differences of :func:`predict_arm`, all six in one vectorised call; the angles'
+    differences are wrapped, so s_x's cut at ±π/2 does not show.
+    """
+    step = eps * np.concatenate([np.eye(3), -np.eye(3)])  # (6, 3)
+    moved = np.asarray(wrist, float)[None] + step.reshape(6, *([1] * (np.ndim(wrist) - 1)), 3)
+    elbow, angles = predict_arm(np.broadcast_to(shoulder, moved.shape), moved, l_u, l_f)
+    d_elbow = (elbow[:3] - elbow[3:]) / (2 * eps)  # (3 coordinates, ..., 2, 3 outputs)
+    d_angles = (np.angle(np.exp(1j * (angles[:3] - angles[3:])))) / (2 * eps)
+    return np.moveaxis(d_elbow, 0, -1), np.moveaxis(d_angles, 0, -1)
+
+
+def _relative_jacobian(state: RobotState, d_wrist: np.ndarray) -> np.ndarray:
+    """(F, 2, m, n) d/dq of a function of (shoulder, wrist) that depends on wrist - shoulder only,
+    from its derivative ``d_wrist`` (F, 2, m, 3)."""
+    if state.jac is None:
+        raise ValueError("needs a RobotState with Jacobians (jacobians=True)")
+    rel = state.jac[:, :, 2, :3, :] - state.jac[:, :, 0, :3, :]  # (F, 2, 3, n)
+    return d_wrist @ rel
 
 
 # --- SOA_x -----------------------------------------------------------------------------------
@@ -160,7 +189,7 @@ class SOA_x(Criterion):  # noqa: N801 - the paper's name
     """SOA_x: elbow to its Soechting prediction from the wrist, per upper-arm length (e (F, 6))."""
 
     name, gamma, x0, weight = "SOA_x", 10.0, 0.2, 1 / 20
-    exact_jacobian, numeric_gradient_cap = False, np.inf  # the prediction is held fixed
+    exact_jacobian = False  # jacobian() holds the prediction fixed; gradient() is exact
     needs_sample = False
 
     def __init__(self, robot: Robot, learned: object = None):
@@ -179,12 +208,25 @@ class SOA_x(Criterion):  # noqa: N801 - the paper's name
     def cost_gradient(self, e):
         return block_norm_gradient(e, 2)
 
+    def exact_jacobian_of(self, state: RobotState) -> np.ndarray:
+        """(F, 6, n) d residual / dq with the prediction moving with the wrist and shoulder."""
+        d_elbow, _ = prediction_derivatives(state.shoulder, state.wrist, self.l_u, self.l_f)
+        assert state.jac is not None
+        pred = state.jac[:, :, 0, :3, :] + _relative_jacobian(state, d_elbow)  # elbow_pred = shoulder + ...
+        jac = (state.jac[:, :, 1, :3, :] - pred) / np.asarray(self.l_u, float)[:, None, None]
+        return jac.reshape(len(state.q), 6, -1)
+
+    def gradient(self, state, sample):
+        e = self.residual(state, sample)[0]
+        h, dh_de = self.metric(e)
+        return h, dh_de @ self.exact_jacobian_of(state)[0]
+
 
 class SOA_q(Criterion):  # noqa: N801
     """SOA_q: the mapped joints to the predicted shoulder and elbow angles (e (F, k), rad)."""
 
     name, gamma, x0, weight = "SOA_q", 2.0, 0.34, 1 / 20
-    exact_jacobian, numeric_gradient_cap = False, np.inf  # the prediction is held fixed
+    exact_jacobian = False  # jacobian() holds the prediction fixed; gradient() is exact
     needs_sample = False
 
     def __init__(self, robot: Robot, learned: object = None):
@@ -199,3 +241,22 @@ class SOA_q(Criterion):  # noqa: N801
     def jacobian(self, state, sample):
         _, angles = predict_arm(state.shoulder[:1], state.wrist[:1], self.l_u, self.l_f)
         return soa_q_jacobian(state, soa_q_targets(self.robot, angles)[0])
+
+    def exact_jacobian_of(self, state: RobotState, eps: float = 1e-6) -> np.ndarray:
+        """(F, k, n) d residual / dq with the predicted targets moving with the wrist and shoulder."""
+        _, angles = predict_arm(state.shoulder, state.wrist, self.l_u, self.l_f)
+        _, d_angles = prediction_derivatives(state.shoulder, state.wrist, self.l_u, self.l_f)
+        f = len(angles)
+        # d targets / d angles (F, k, 2, 3): the mapping (and its dynamic offsets), central differences
+        step = eps * np.eye(6).reshape(6, 1, 2, 3)
+        batch = np.concatenate([angles[None] + step, angles[None] - step]).reshape(-1, 2, 3)
+        idx, targets = soa_q_targets(self.robot, batch)
+        targets = targets.reshape(2, 6, f, len(idx))
+        d_targets = np.moveaxis((targets[0] - targets[1]) / (2 * eps), 0, -1).reshape(f, len(idx), 2, 3)
+        d_angles_dq = _relative_jacobian(state, d_angles)  # (F, 2, 3, n)
+        return soa_q_jacobian(state, idx) - np.einsum("fkac,facn->fkn", d_targets, d_angles_dq)
+
+    def gradient(self, state, sample):
+        e = self.residual(state, sample)[0]
+        h, dh_de = self.metric(e)
+        return h, dh_de @ self.exact_jacobian_of(state)[0]
