@@ -1,0 +1,109 @@
+"""What a study runs: approaches (a solver, the criteria it adds, a scenario, a task stack) read
+from an approach file (``study/paper.toml`` is the paper's)."""
+
+from __future__ import annotations
+
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+from hlik.criteria import registry
+from hlik.errors import HlikError
+from hlik.solvers import SOLVER_NAMES
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+PAPER = Path(__file__).with_name("paper.toml")
+
+
+@dataclass(frozen=True)
+class Approach:
+    """One retargeting approach of a study.
+
+    Attributes:
+        solver: ``jm``, ``jv``, ``qp`` or ``slsqp``.
+        criteria: Human-likeness criteria it adds (paper names).
+        scenario: ``pose`` or ``relative``.
+        stack: Task stack (bundled name or file) giving the solver's weights.
+        correlation: Part of the dataset the metric is derived from (at most one criterion).
+    """
+
+    solver: str
+    criteria: tuple[str, ...] = ()
+    scenario: str = "pose"
+    stack: str = "paper_opt"
+    correlation: bool = False
+
+    @property
+    def name(self) -> str:
+        """``qp+SYN+HJA_r``, with `` (relative)`` for the relative-pose scenario."""
+        name = "+".join((self.solver, *self.criteria))
+        return name if self.scenario == "pose" else f"{name} (relative)"
+
+    @property
+    def key(self) -> str:
+        """The name as a file-name part: ``qp-SYN-HJA_r`` or ``qp-SYN-relative``."""
+        return "-".join((self.solver, *self.criteria, *(() if self.scenario == "pose" else ("relative",))))
+
+
+def load_approaches(path: str | Path = PAPER) -> tuple[Approach, ...]:
+    """The approaches of an approach file, each once, correlation ones first.
+
+    Raises:
+        HlikError: one line naming the file and what is wrong in it.
+    """
+    path = Path(path)
+    try:
+        raw = tomllib.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise HlikError(f"{path}: no such approach file") from None
+    except (OSError, UnicodeDecodeError) as e:
+        raise HlikError(f"{path}: cannot read ({e})") from None
+    except tomllib.TOMLDecodeError as e:
+        raise HlikError(f"{path}: not valid TOML ({e})") from None
+    unknown = set(raw) - {"stacks", "correlation", "evaluation"}
+    if unknown:
+        raise HlikError(f"{path}: unknown table {sorted(unknown)[0]!r} (stacks, correlation, evaluation)")
+    stacks = {"pose": "paper_opt", "relative": "relative_pose"} | dict(raw.get("stacks", {}))
+    corr, ev = raw.get("correlation", {}), raw.get("evaluation", {})
+    out: list[Approach] = []
+    for solver in _solvers(corr, path, "correlation"):
+        out.append(Approach(solver, stack=stacks["pose"], correlation=True))
+        if corr.get("single_criteria", False) and solver != "jm":
+            for c in registry.human_likeness():
+                out.append(Approach(solver, (c,), stack=stacks["pose"], correlation=True))
+    pairs = ev.get("pairs", [])
+    if not isinstance(pairs, list) or not all(isinstance(p, list) and 1 <= len(p) <= 2 for p in pairs):
+        raise HlikError(
+            f'{path}: evaluation.pairs must be a list of one or two names, e.g. [["SYN", "HJA_r"]]'
+        )
+    for scenario in ev.get("scenarios", ["pose"]):
+        if scenario not in stacks:
+            raise HlikError(f"{path}: unknown scenario {scenario!r} in evaluation.scenarios (pose, relative)")
+        for solver in _solvers(ev, path, "evaluation"):
+            groups = [()] if scenario != "pose" or solver == "jm" else []
+            groups += [tuple(p) for p in pairs] if solver != "jm" else []
+            for criteria in groups:
+                _check_criteria(criteria, path)
+                out.append(Approach(solver, criteria, scenario, stacks[scenario]))
+    seen: dict[str, Approach] = {}
+    for a in out:
+        seen.setdefault(a.name, a)
+    return tuple(seen.values())
+
+
+def _solvers(table: dict, path: Path, where: str) -> list[str]:
+    solvers = table.get("solvers", [])
+    bad = [s for s in solvers if s not in SOLVER_NAMES]
+    if not isinstance(solvers, list) or bad:
+        raise HlikError(f"{path}: {where}.solvers: unknown solver {bad[0] if bad else solvers!r}")
+    return solvers
+
+
+def _check_criteria(criteria: tuple[str, ...], path: Path) -> None:
+    bad = [c for c in criteria if c not in registry.human_likeness()]
+    if bad:
+        raise HlikError(f"{path}: unknown criterion {bad[0]!r} in evaluation.pairs")

@@ -1,0 +1,110 @@
+"""The study's dataset: one Parquet file of per-frame costs per cell (take x robot x approach).
+
+A cell's table has one row per frame: ``take``, ``robot``, ``approach``, ``solver``, ``scenario``,
+``frame``, ``time`` (s), ``h_<criterion>`` for every registered criterion (functional ones included;
+units of the criterion's cost), ``fpos_left`` and ``fpos_right`` (m), ``iterations``,
+``converged``, ``failed``, ``solve_time`` (s), ``collision`` and ``speed_ratio`` (the step into the
+frame; 0 at the first). Files are written whole or not at all, so a rerun skips finished cells and a
+crash loses one cell.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from hlik import __version__
+from hlik.atomic import atomic_path
+from hlik.criteria.functional import position_error
+from hlik.criteria.learned import Learned
+from hlik.human.load import load_motion
+from hlik.metrics import evaluate
+from hlik.problem.placement import placement_from_spec
+from hlik.retarget import retarget
+from hlik.robot.model import Robot
+from hlik.solvers import get_solver
+from hlik.solvers.stack_file import load_stack
+from hlik.study.approaches import Approach
+
+SKIP = 1.0  # s cut from the start of a take (the subject's T-pose and first reach) when cropping
+
+
+@dataclass(frozen=True)
+class Cell:
+    """One retargeting run of the study: a take, a robot, an approach; ``seconds`` of motion after
+    the first second (``None``: the whole take), resampled to ``rate`` Hz; the learned pieces from
+    ``corpus`` (``hlik.criteria.learned.learn``'s default if None)."""
+
+    take: Path
+    robot: str
+    approach: Approach
+    seconds: float | None = None
+    rate: float = 100.0
+    corpus: Path | None = None
+
+    @property
+    def file_name(self) -> str:
+        return f"{self.take.stem}__{self.robot}__{self.approach.key}.parquet"
+
+
+def run_cell(cell: Cell, robot: Robot, learned: Learned) -> pa.Table:
+    """Retarget and evaluate one cell; its per-frame table (see the module docstring)."""
+    a = cell.approach
+    motion = load_motion(cell.take, rate=cell.rate)
+    if cell.seconds is not None:
+        motion = motion.crop(min(SKIP, motion.duration / 2), min(SKIP + cell.seconds, motion.duration))
+    stack = load_stack(a.stack).with_criteria(a.criteria)
+    settings = None if a.solver == "jm" else stack.settings(a.solver)
+    placement = placement_from_spec(robot.placement, robot, motion)
+    start = time.process_time()
+    traj = retarget(motion, robot, get_solver(a.solver, settings, learned), placement)
+    cpu = time.process_time() - start
+    ev = evaluate(traj, robot, learned, scenario=a.scenario)
+    n = traj.n_frames
+    fpos = position_error(traj.tcp_pos, traj.targets.pos)
+    d = traj.diagnostics
+    columns: dict[str, object] = {
+        "take": [cell.take.stem] * n,
+        "robot": [robot.name] * n,
+        "approach": [a.name] * n,
+        "solver": [a.solver] * n,
+        "scenario": [a.scenario] * n,
+        "frame": np.arange(n),
+        "time": traj.times - traj.times[0],
+        **{f"h_{k}": np.asarray(v, dtype=float) for k, v in ev.h.items()},
+        "fpos_left": fpos[:, 0],
+        "fpos_right": fpos[:, 1],
+        "iterations": d.iterations.astype(np.int32),
+        "converged": d.converged.astype(bool),
+        "failed": d.failed.astype(bool),
+        "solve_time": d.solve_time.astype(float),
+        "collision": ev.collisions.astype(bool),
+        "speed_ratio": np.concatenate([[0.0], ev.speed_ratio]),
+    }
+    meta = {
+        "hlik": __version__,
+        "placement": traj.placement.method,
+        "criteria": ",".join(a.criteria),
+        "stack": a.stack,
+        "seconds": "" if cell.seconds is None else f"{cell.seconds:g}",
+        "cpu_seconds": f"{cpu:.3f}",
+    }
+    table = pa.table(columns)
+    return table.replace_schema_metadata({k.encode(): v.encode() for k, v in meta.items()})
+
+
+def write_cell(table: pa.Table, path: Path) -> Path:
+    """Write a cell's table to ``path`` atomically."""
+    with atomic_path(path) as tmp:
+        pq.write_table(table, tmp)
+    return path
+
+
+def read_dataset(paths: list[Path]) -> pa.Table:
+    """The cells' tables, concatenated."""
+    return pa.concat_tables([pq.read_table(p) for p in paths]) if paths else pa.table({})
