@@ -92,6 +92,13 @@ def test_the_papers_approach_file():
     assert all(a.stack == "paper_opt" for a in approaches if a.scenario == "pose")
 
 
+def test_the_quick_approach_file_is_bundled_by_name():
+    quick = load_approaches("quick")
+    assert {a.solver for a in quick} == {"jm", "qp"} and len(quick) == 1 + 1 + len(NAMES) + 3
+    with pytest.raises(HlikError, match="bundled: paper, quick"):
+        load_approaches("slow")
+
+
 @pytest.mark.parametrize(
     "text, problem",
     [

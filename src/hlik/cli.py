@@ -369,7 +369,11 @@ def study(
     ),
     approaches: Annotated[
         Path | None,
-        typer.Option(help="Approach file (default: the paper's, hlik/study/paper.toml).", show_default=False),
+        typer.Option(
+            help="Approach file, or a bundled one: paper (the default, the paper's 58) or quick (JM and "
+            "QP, minutes).",
+            show_default=False,
+        ),
     ] = None,
     seconds: Annotated[
         float | None,

@@ -17,6 +17,7 @@ else:  # pragma: no cover
     import tomli as tomllib
 
 PAPER = Path(__file__).with_name("paper.toml")
+BUNDLED = ("paper", "quick")  # approach files shipped beside this module, usable by name
 
 
 @dataclass(frozen=True)
@@ -50,16 +51,17 @@ class Approach:
 
 
 def load_approaches(path: str | Path = PAPER) -> tuple[Approach, ...]:
-    """The approaches of an approach file, each once, correlation ones first.
+    """The approaches of an approach file (or a bundled one by name: ``paper``, ``quick``), each
+    once, correlation ones first.
 
     Raises:
         HlikError: one line naming the file and what is wrong in it.
     """
-    path = Path(path)
+    path = Path(__file__).with_name(f"{path}.toml") if str(path) in BUNDLED else Path(path)
     try:
         raw = tomllib.loads(path.read_text(encoding="utf-8"))
     except FileNotFoundError:
-        raise HlikError(f"{path}: no such approach file") from None
+        raise HlikError(f"{path}: no such approach file (bundled: {', '.join(BUNDLED)})") from None
     except (OSError, UnicodeDecodeError) as e:
         raise HlikError(f"{path}: cannot read ({e})") from None
     except tomllib.TOMLDecodeError as e:

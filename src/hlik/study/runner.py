@@ -4,7 +4,6 @@ then the analysis and the report. A failed cell is listed, never fatal."""
 from __future__ import annotations
 
 import functools
-import logging
 import os
 import time
 import traceback
