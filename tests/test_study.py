@@ -106,6 +106,9 @@ def test_the_quick_approach_file_is_bundled_by_name():
         ("[evaluation]\nsolvers = ['qp']\npairs = [['SYN', 'XYZ']]", "unknown criterion 'XYZ'"),
         ("[evaluation]\nsolvers = ['qp']\nscenarios = ['side']", "unknown scenario 'side'"),
         ("[extra]\na = 1", "unknown table 'extra'"),
+        ("[correlation]\nsolvers = 'jm'", "solvers must be a list"),
+        ("[correlation]\nsolvers = ['jm']\nsingle_criteria = 'yes'", "true or false"),
+        ("", "no approach for the correlation"),
     ],
 )
 def test_bad_approach_files_name_the_file_and_the_problem(tmp_path, text, problem):
@@ -159,6 +162,11 @@ def test_a_rerun_reuses_every_cell_and_redoes_only_a_lost_one(tiny):
     assert cells[1].exists() and all(p.stat().st_mtime_ns == before[p] for p in cells if p != cells[1])
 
 
+def test_cells_of_other_lengths_or_rates_are_not_reused():
+    names = {c.file_name for s in (1.0, 2.0, None) for c in plan([demo_motion_path()], ["armar6"], TINY, s)}
+    assert len(names) == 3 * len(TINY)
+
+
 def test_a_failing_cell_is_listed_not_fatal(tmp_path):
     bad = tmp_path / "broken.xml"
     bad.write_text("<MMM><Motion name='x'>")
@@ -202,6 +210,9 @@ def test_bad_metric_files_name_the_file_and_the_problem(tmp_path, text, problem)
     with pytest.raises(HlikError, match="m.toml") as err:
         load_metric(path)
     assert problem in str(err.value)
+    # on the command line the message prints as written ("[weights]" is not rich markup)
+    result = CliRunner().invoke(app, ["evaluate", str(path.with_suffix(".npz")), "--metric", str(path)])
+    assert result.exit_code == 2 and problem in result.stderr and "[weights]" in result.stderr
 
 
 def test_ray_gives_the_in_process_result(tiny, tmp_path):

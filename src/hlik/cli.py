@@ -12,6 +12,7 @@ from typing import Annotated
 import numpy as np
 import typer
 from rich.console import Console
+from rich.markup import escape
 from rich.table import Table
 
 from hlik.errors import HlikError
@@ -50,7 +51,8 @@ MetricOpt = Annotated[
 
 
 def _fail(err: HlikError) -> None:
-    Console(stderr=True).print(f"[red]error:[/red] {err}", highlight=False, soft_wrap=True)
+    # the message is text, not markup: "[weights]" or "[qp]" in it must print as written
+    Console(stderr=True).print(f"[red]error:[/red] {escape(str(err))}", highlight=False, soft_wrap=True)
     raise typer.Exit(2)
 
 
@@ -192,7 +194,8 @@ def run(
         console.print(f"placement optimize (m_hl,f of a short qp run): {scores}")
     console.print(
         f"human likeness m_hl = {ev.m_hl:.3f}, functional m_f = {ev.m_f:.3f} ({scenario}), "
-        f"m_hl,f = {ev.m_hl_f:.3f}   (details: hlik evaluate {npz})"
+        f"m_hl,f = {ev.m_hl_f:.3f}, weights and x0: {ev.metric.source}   (details: hlik evaluate {npz}"
+        + (f" --metric {metric})" if metric is not None else ")")
     )
 
 

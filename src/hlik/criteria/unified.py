@@ -131,8 +131,9 @@ def load_metric(path: Path) -> Metric:
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v):
                 raise HlikError(f"{path}: {key}.{k} must be a number, not {v!r}")
         tables[key] = {k: float(table[k]) for k in names}
-    if any(v < 0 for v in tables["weights"].values()) or abs(sum(tables["weights"].values()) - 1.0) > 1e-6:
-        raise HlikError(f"{path}: [weights] must be non-negative and sum to 1")
+    total = sum(tables["weights"].values())
+    if any(v < 0 for v in tables["weights"].values()) or abs(total - 1.0) > 1e-6:
+        raise HlikError(f"{path}: [weights] must be non-negative and sum to 1, not {total:.6g}")
     if any(v <= 0 for v in tables["x0"].values()):
         raise HlikError(f"{path}: [x0] must be positive")
     source = raw.get("source", path.name)

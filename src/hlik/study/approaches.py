@@ -71,10 +71,13 @@ def load_approaches(path: str | Path = PAPER) -> tuple[Approach, ...]:
         raise HlikError(f"{path}: unknown table {sorted(unknown)[0]!r} (stacks, correlation, evaluation)")
     stacks = {"pose": "paper_opt", "relative": "relative_pose"} | dict(raw.get("stacks", {}))
     corr, ev = raw.get("correlation", {}), raw.get("evaluation", {})
+    single = corr.get("single_criteria", False)
+    if not isinstance(single, bool):
+        raise HlikError(f"{path}: correlation.single_criteria must be true or false")
     out: list[Approach] = []
     for solver in _solvers(corr, path, "correlation"):
         out.append(Approach(solver, stack=stacks["pose"], correlation=True))
-        if corr.get("single_criteria", False) and solver != "jm":
+        if single and solver != "jm":
             for c in registry.human_likeness():
                 out.append(Approach(solver, (c,), stack=stacks["pose"], correlation=True))
     pairs = ev.get("pairs", [])
@@ -94,14 +97,18 @@ def load_approaches(path: str | Path = PAPER) -> tuple[Approach, ...]:
     seen: dict[str, Approach] = {}
     for a in out:
         seen.setdefault(a.name, a)
+    if not any(a.correlation for a in seen.values()):
+        raise HlikError(f"{path}: no approach for the correlation (a [correlation] table with solvers)")
     return tuple(seen.values())
 
 
 def _solvers(table: dict, path: Path, where: str) -> list[str]:
     solvers = table.get("solvers", [])
+    if not isinstance(solvers, list):
+        raise HlikError(f'{path}: {where}.solvers must be a list, e.g. ["jm", "qp"]')
     bad = [s for s in solvers if s not in SOLVER_NAMES]
-    if not isinstance(solvers, list) or bad:
-        raise HlikError(f"{path}: {where}.solvers: unknown solver {bad[0] if bad else solvers!r}")
+    if bad:
+        raise HlikError(f"{path}: {where}.solvers: unknown solver {bad[0]!r}")
     return solvers
 
 

@@ -49,7 +49,10 @@ class Cell:
 
     @property
     def file_name(self) -> str:
-        return f"{self.take.stem}__{self.robot}__{self.approach.key}.parquet"
+        """``<take>__<robot>__<approach>__<seconds>s.parquet``: what a reused cell must match."""
+        span = "all" if self.seconds is None else f"{self.seconds:g}"
+        rate = "" if self.rate == 100.0 else f"__{self.rate:g}hz"
+        return f"{self.take.stem}__{self.robot}__{self.approach.key}__{span}s{rate}.parquet"
 
 
 def run_cell(cell: Cell, robot: Robot, learned: Learned) -> pa.Table:

@@ -85,7 +85,9 @@ def score_bars(ranking: Ranking, path: Path, best: int = 4) -> Path:
     ax.set_ylim(0, 1)
     ax.set_ylabel("score")
     ax.legend(fontsize=7, ncols=2, loc="upper left", bbox_to_anchor=(1.0, 1.0))
-    ax.set_title(f"Scores of the best approaches, {ranking.scenario} scenario (cf. paper Fig. 6)")
+    ax.set_title(
+        f"The {best} best approaches and JM by m_hl,f (in brackets), {ranking.scenario} scenario (cf. Fig. 6)"
+    )
     return _save(fig, path)
 
 
@@ -142,7 +144,7 @@ def _img(path: Path) -> str:
 
 
 def _table(head: Sequence[str], rows: Sequence[Sequence[object]]) -> str:
-    cell = lambda v: f"{v:.3f}" if isinstance(v, float) else html.escape(str(v))  # noqa: E731
+    cell = lambda v: f"{v:.4g}" if isinstance(v, float) else html.escape(str(v))  # noqa: E731
     out = ["<table><tr>" + "".join(f"<th>{html.escape(h)}</th>" for h in head) + "</tr>"]
     out += ["<tr>" + "".join(f"<td>{cell(v)}</td>" for v in r) + "</tr>" for r in rows]
     return "\n".join(out) + "</table>"

@@ -175,7 +175,13 @@ def run_study(
     table = read_dataset([o.path for o in outcomes if o.path is not None])
     frames = correlation_frames(table, {a.name for a in approaches if a.correlation}) if len(table) else table
     if not len(frames):
-        raise HlikError(f"{out}: no frames to correlate (every correlation cell failed or none is listed)")
+        failed = [o for o in outcomes if o.error is not None]
+        first = (
+            f"; {len(failed)} cells failed, the first: {failed[0].cell.take.name}: {failed[0].error}"
+            if failed
+            else ""
+        )
+        raise HlikError(f"{out}: no frames to correlate{first}")
     corr = correlate(frames)
     metric = derive_metric(frames, corr, source=f"hlik study of {len(takes)} takes on {', '.join(robots)}")
     metric_file = out / "metric.toml"
