@@ -8,7 +8,6 @@ TOML; :meth:`Metric.table3` is the paper's.
 
 from __future__ import annotations
 
-import sys
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -18,11 +17,7 @@ import numpy as np
 
 from hlik.criteria import registry
 from hlik.errors import HlikError
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
+from hlik.tomlfile import read_toml
 
 # Sec. V: functional criteria and their mid-points, per scenario.
 FUNCTIONAL_X0: Mapping[str, Mapping[str, float]] = MappingProxyType(
@@ -105,14 +100,7 @@ def load_metric(path: Path) -> Metric:
         HlikError: one line naming the file and the problem.
     """
     path = Path(path)
-    try:
-        raw = tomllib.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise HlikError(f"{path}: no such metric file") from None
-    except (OSError, UnicodeDecodeError) as e:
-        raise HlikError(f"{path}: cannot read ({e})") from None
-    except tomllib.TOMLDecodeError as e:
-        raise HlikError(f"{path}: not valid TOML ({e})") from None
+    raw = read_toml(path, "metric")
     names = registry.human_likeness()
     tables = {}
     for key in ("weights", "x0"):

@@ -10,7 +10,6 @@ added criterion weighs ``gamma_i * criterion weight / len(criteria)``, as in the
 from __future__ import annotations
 
 import dataclasses
-import sys
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -19,11 +18,7 @@ from types import MappingProxyType
 from hlik.criteria import registry
 from hlik.errors import HlikError
 from hlik.paths import tasks_dir
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
+from hlik.tomlfile import read_toml
 
 SCENARIOS = ("pose", "relative")
 SOLVER_TABLES = ("qp", "jv", "slsqp")
@@ -92,14 +87,7 @@ def load_stack(path: str | Path) -> Stack:
     path = Path(path)
     if not path.exists() and path.suffix == "" and (tasks_dir() / f"{path}.toml").exists():
         path = tasks_dir() / f"{path}.toml"
-    try:
-        raw = tomllib.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise HlikError(f"{path}: no such stack file (bundled: {', '.join(bundled_stacks())})") from None
-    except (OSError, UnicodeDecodeError) as e:
-        raise HlikError(f"{path}: cannot read ({e})") from None
-    except tomllib.TOMLDecodeError as e:
-        raise HlikError(f"{path}: not valid TOML ({e})") from None
+    raw = read_toml(path, "stack", bundled_stacks())
     return _parse(raw, path)
 
 

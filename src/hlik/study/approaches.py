@@ -3,18 +3,13 @@ from an approach file (``study/paper.toml`` is the paper's)."""
 
 from __future__ import annotations
 
-import sys
 from dataclasses import dataclass
 from pathlib import Path
 
 from hlik.criteria import registry
 from hlik.errors import HlikError
 from hlik.solvers import SOLVER_NAMES
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
+from hlik.tomlfile import read_toml
 
 PAPER = Path(__file__).with_name("paper.toml")
 BUNDLED = ("paper", "quick")  # approach files shipped beside this module, usable by name
@@ -58,14 +53,7 @@ def load_approaches(path: str | Path = PAPER) -> tuple[Approach, ...]:
         HlikError: one line naming the file and what is wrong in it.
     """
     path = Path(__file__).with_name(f"{path}.toml") if str(path) in BUNDLED else Path(path)
-    try:
-        raw = tomllib.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise HlikError(f"{path}: no such approach file (bundled: {', '.join(BUNDLED)})") from None
-    except (OSError, UnicodeDecodeError) as e:
-        raise HlikError(f"{path}: cannot read ({e})") from None
-    except tomllib.TOMLDecodeError as e:
-        raise HlikError(f"{path}: not valid TOML ({e})") from None
+    raw = read_toml(path, "approach", BUNDLED)
     unknown = set(raw) - {"stacks", "correlation", "evaluation"}
     if unknown:
         raise HlikError(f"{path}: unknown table {sorted(unknown)[0]!r} (stacks, correlation, evaluation)")
