@@ -14,12 +14,14 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
+import mujoco
 import numpy as np
 
 from hlik.criteria.base import Sample
 from hlik.problem.problem import Problem
 from hlik.problem.reference import HumanReference, reference_sample
 from hlik.problem.targets import HandTargets
+from hlik.robot.collision import CollisionPairs, DistanceBounds, velocity_damper
 from hlik.robot.model import Robot
 from hlik.solvers.base import Diagnostics, SolverResult
 
@@ -126,3 +128,13 @@ def iterate(
             converged = True
             break
     return FrameResult(q, steps, converged)
+
+
+def collision_rows(
+    robot: Robot, data: mujoco.MjData, pairs: CollisionPairs, bounds: DistanceBounds | None, settings
+) -> tuple[np.ndarray, np.ndarray]:
+    """The velocity-damper rows (k, n) and bounds (k,) of ``settings``' ``collision_margin``,
+    ``collision_detect`` and ``collision_gain`` (the QP's and JV's), for the configuration whose
+    kinematics ``data`` holds; ``bounds`` carried across steps."""
+    margin, detect, gain = settings.collision_margin, settings.collision_detect, settings.collision_gain
+    return velocity_damper(robot, data, pairs, margin, detect, gain, bounds)

@@ -35,11 +35,11 @@ from hlik.criteria.base import Sample, Term
 from hlik.criteria.functional import fORI, fORI_off, target_terms
 from hlik.criteria.learned import Learned, learn
 from hlik.problem.problem import Problem
-from hlik.robot.collision import CollisionPairs, DistanceBounds, collision_pairs, velocity_damper
+from hlik.robot.collision import CollisionPairs, DistanceBounds, collision_pairs
 from hlik.robot.model import Robot
 from hlik.robot.state import RobotState, robot_state
 from hlik.solvers.base import ConfiguredSolver, SolverResult
-from hlik.solvers.frames import FrameResult, JointBox, iterate, track
+from hlik.solvers.frames import FrameResult, JointBox, collision_rows, iterate, track
 from hlik.solvers.qp import solve_qp
 
 
@@ -326,15 +326,7 @@ def step(
     null, null_bound = bounded(null_step(jac, task))
     dq = bound(task + null, settings.max_step)
     if pairs is not None and len(pairs) and np.all(np.isfinite(dq)):
-        rows, rhs = velocity_damper(  # the kinematics of q are in data (robot_state)
-            robot,
-            data,
-            pairs,
-            settings.collision_margin,
-            settings.collision_detect,
-            settings.collision_gain,
-            bounds,
-        )
+        rows, rhs = collision_rows(robot, data, pairs, bounds, settings)  # q's kinematics in data
         if np.any(rows @ dq > rhs + 1e-9):
             task, null = _avoiding_step(jac, xdot, weights, damping, rows, rhs, q, box, settings, null_step)
             null, null_bound = bounded(null)

@@ -25,11 +25,11 @@ from hlik.criteria.functional import target_terms
 from hlik.criteria.learned import Learned, learn
 from hlik.criteria.smoothness import smoothness_terms
 from hlik.problem.problem import Problem
-from hlik.robot.collision import CollisionPairs, DistanceBounds, collision_pairs, velocity_damper
+from hlik.robot.collision import CollisionPairs, DistanceBounds, collision_pairs
 from hlik.robot.model import Robot
 from hlik.robot.state import robot_state
 from hlik.solvers.base import ConfiguredSolver, SolverResult
-from hlik.solvers.frames import FrameResult, JointBox, iterate, track
+from hlik.solvers.frames import FrameResult, JointBox, collision_rows, iterate, track
 
 # HJA_r's Table II gamma (2) doubled for the QP: beside SYN (gamma 6) it barely acted, and SYN +
 # HJA_r raised 2-Panda's m_hl by 0.042; at 4 by 0.051 (README, quality table), tracking within 2 cm.
@@ -172,15 +172,7 @@ def step(
     lb, ub = (box or JointBox(robot.lower, robot.upper)).step_bounds(q, settings.max_step)
     a_ineq, b_ineq = np.zeros((0, robot.dof)), np.zeros(0)
     if pairs is not None and len(pairs):
-        a_ineq, b_ineq = velocity_damper(  # the kinematics of q are in data (robot_state)
-            robot,
-            data,
-            pairs,
-            settings.collision_margin,
-            settings.collision_detect,
-            settings.collision_gain,
-            bounds,
-        )
+        a_ineq, b_ineq = collision_rows(robot, data, pairs, bounds, settings)  # q's kinematics in data
     dq = solve_qp(hessian, gradient, lb, ub, settings.solver, a_ineq, b_ineq)
     if dq is None and len(b_ineq):
         # too close already and boxed in: at least come no closer
