@@ -90,19 +90,20 @@ def predict_arm(
 
 def prediction_derivatives(
     shoulder: np.ndarray, wrist: np.ndarray, l_u: np.ndarray, l_f: np.ndarray, eps: float = 1e-6
-) -> tuple[np.ndarray, np.ndarray]:
-    """d elbow_pred / d wrist and d angles / d wrist, each (..., 2, 3, 3) (output, wrist coordinate),
-    the shoulder held (``d / d shoulder`` is ``I - `` the first, ``-`` the second).
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`predict_arm`'s elbow_pred and angles (each (..., 2, 3)), and d elbow_pred / d wrist
+    and d angles / d wrist (each (..., 2, 3, 3): output, wrist coordinate), the shoulder held
+    (``d / d shoulder`` is ``I - `` the first, ``-`` the second).
 
-    Central differences of :func:`predict_arm`, all six in one vectorised call; the angles'
-    differences are wrapped, so s_x's cut at ±π/2 does not show.
+    Central differences of :func:`predict_arm`, in one vectorised call with the prediction itself;
+    the angles' differences are wrapped, so s_x's cut at ±π/2 does not show.
     """
-    step = eps * np.concatenate([np.eye(3), -np.eye(3)])  # (6, 3)
-    moved = np.asarray(wrist, float)[None] + step.reshape(6, *([1] * (np.ndim(wrist) - 1)), 3)
+    step = eps * np.concatenate([np.zeros((1, 3)), np.eye(3), -np.eye(3)])  # (7, 3): none, +, -
+    moved = np.asarray(wrist, float)[None] + step.reshape(7, *([1] * (np.ndim(wrist) - 1)), 3)
     elbow, angles = predict_arm(np.broadcast_to(shoulder, moved.shape), moved, l_u, l_f)
-    d_elbow = (elbow[:3] - elbow[3:]) / (2 * eps)  # (3 coordinates, ..., 2, 3 outputs)
-    d_angles = (np.angle(np.exp(1j * (angles[:3] - angles[3:])))) / (2 * eps)
-    return np.moveaxis(d_elbow, 0, -1), np.moveaxis(d_angles, 0, -1)
+    d_elbow = (elbow[1:4] - elbow[4:]) / (2 * eps)  # (3 coordinates, ..., 2, 3 outputs)
+    d_angles = (np.angle(np.exp(1j * (angles[1:4] - angles[4:])))) / (2 * eps)
+    return elbow[0], angles[0], np.moveaxis(d_elbow, 0, -1), np.moveaxis(d_angles, 0, -1)
 
 
 def _relative_jacobian(state: RobotState, d_wrist: np.ndarray) -> np.ndarray:
@@ -208,18 +209,20 @@ class SOA_x(Criterion):  # noqa: N801 - the paper's name
     def cost_gradient(self, e):
         return block_norm_gradient(e, 2)
 
-    def exact_jacobian_of(self, state: RobotState) -> np.ndarray:
-        """(F, 6, n) d residual / dq with the prediction moving with the wrist and shoulder."""
-        d_elbow, _ = prediction_derivatives(state.shoulder, state.wrist, self.l_u, self.l_f)
+    def exact_residual_and_jacobian(self, state: RobotState) -> tuple[np.ndarray, np.ndarray]:
+        """The residual (F, 6) and d residual / dq (F, 6, n) with the prediction moving with the
+        wrist and shoulder."""
+        elbow, _, d_elbow, _ = prediction_derivatives(state.shoulder, state.wrist, self.l_u, self.l_f)
         assert state.jac is not None
         pred = state.jac[:, :, 0, :3, :] + _relative_jacobian(state, d_elbow)  # elbow_pred = shoulder + ...
         jac = (state.jac[:, :, 1, :3, :] - pred) / np.asarray(self.l_u, float)[:, None, None]
-        return jac.reshape(len(state.q), 6, -1)
+        e = soa_x_residual(state, elbow, self.l_u).reshape(len(state.q), 6)
+        return e, jac.reshape(len(state.q), 6, -1)
 
     def gradient(self, state, sample):
-        e = self.residual(state, sample)[0]
-        h, dh_de = self.metric(e)
-        return h, dh_de @ self.exact_jacobian_of(state)[0]
+        e, jac = self.exact_residual_and_jacobian(state)
+        h, dh_de = self.metric(e[0])
+        return h, dh_de @ jac[0]
 
 
 class SOA_q(Criterion):  # noqa: N801
@@ -242,10 +245,12 @@ class SOA_q(Criterion):  # noqa: N801
         _, angles = predict_arm(state.shoulder[:1], state.wrist[:1], self.l_u, self.l_f)
         return soa_q_jacobian(state, soa_q_targets(self.robot, angles)[0])
 
-    def exact_jacobian_of(self, state: RobotState, eps: float = 1e-6) -> np.ndarray:
-        """(F, k, n) d residual / dq with the predicted targets moving with the wrist and shoulder."""
-        _, angles = predict_arm(state.shoulder, state.wrist, self.l_u, self.l_f)
-        _, d_angles = prediction_derivatives(state.shoulder, state.wrist, self.l_u, self.l_f)
+    def exact_residual_and_jacobian(
+        self, state: RobotState, eps: float = 1e-6
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The residual (F, k) and d residual / dq (F, k, n) with the predicted targets moving with
+        the wrist and shoulder."""
+        _, angles, _, d_angles = prediction_derivatives(state.shoulder, state.wrist, self.l_u, self.l_f)
         f = len(angles)
         # d targets / d angles (F, k, 2, 3): the mapping (and its dynamic offsets), central differences
         step = eps * np.eye(6).reshape(6, 1, 2, 3)
@@ -254,9 +259,10 @@ class SOA_q(Criterion):  # noqa: N801
         targets = targets.reshape(2, 6, f, len(idx))
         d_targets = np.moveaxis((targets[0] - targets[1]) / (2 * eps), 0, -1).reshape(f, len(idx), 2, 3)
         d_angles_dq = _relative_jacobian(state, d_angles)  # (F, 2, 3, n)
-        return soa_q_jacobian(state, idx) - np.einsum("fkac,facn->fkn", d_targets, d_angles_dq)
+        e = soa_q_residual(self.robot, state, idx, soa_q_targets(self.robot, angles)[1])
+        return e, soa_q_jacobian(state, idx) - np.einsum("fkac,facn->fkn", d_targets, d_angles_dq)
 
     def gradient(self, state, sample):
-        e = self.residual(state, sample)[0]
-        h, dh_de = self.metric(e)
-        return h, dh_de @ self.exact_jacobian_of(state)[0]
+        e, jac = self.exact_residual_and_jacobian(state)
+        h, dh_de = self.metric(e[0])
+        return h, dh_de @ jac[0]
