@@ -123,3 +123,17 @@ def test_evaluate_cli(tmp_path, takes):
     assert bad.exit_code == 2 and "missing.npz: no such file" in bad.stderr
     bad = CliRunner().invoke(app, ["evaluate", str(path), "--scenario", "other"])
     assert bad.exit_code == 2 and "unknown scenario" in bad.stderr
+
+
+def test_costs_in_chunks_equal_costs_in_one_pass(monkeypatch, takes):
+    """Chunks bound the memory of long takes; the history at each chunk's start carries over."""
+    import hlik.metrics as metrics
+
+    r = load_robot("armar6")
+    traj = retarget(load_motion(takes[0], rate=100.0).crop(1.0, 2.5), r, solver="jm")
+    learned = learn(r)
+    whole = metrics.costs(traj, r, learned)
+    monkeypatch.setattr(metrics, "COST_CHUNK", 37)
+    chunked = metrics.costs(traj, r, learned)
+    for name, h in whole.items():
+        np.testing.assert_allclose(chunked[name], h, rtol=1e-12, atol=1e-15, err_msg=name)

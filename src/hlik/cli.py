@@ -2,30 +2,90 @@
 
 from __future__ import annotations
 
+import math
 import os
+import re
 import sys
 import time
+from collections.abc import Iterator, Mapping, Sequence
+from contextlib import contextmanager
 from dataclasses import replace
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated, Any
 
 import numpy as np
 import typer
 from rich.console import Console
-from rich.markup import escape
 from rich.table import Table
+from rich.text import Text
+from typer.core import TyperGroup
 
+from hlik.atomic import raising_on_sigterm
 from hlik.errors import HlikError
 from hlik.paths import demo_motion_path
 from hlik.robot.mapping import JointMap
 
+if TYPE_CHECKING:  # imported where used: `hlik --help` stays quick
+    from hlik.robot.model import Robot
+    from hlik.trajectory import Trajectory
+
+RATE_RANGE = (1.0, 10000.0)  # Hz a motion may be resampled to (0 keeps its own)
+
+
+def _warn(notes) -> None:
+    """``warning: <note>`` on one line of stderr for each note (text, never markup)."""
+    err = Console(stderr=True, soft_wrap=True, highlight=False)
+    for note in notes:
+        err.print(Text.assemble(("warning:", "yellow"), " ", " ".join(str(note).split())))
+
+
+def _print_error(message: str) -> None:
+    """``error: <message>`` on one line of stderr; the message is text, never markup ("[qp]")."""
+    text = Text.assemble(("error:", "red"), " ", " ".join(message.split()))
+    Console(stderr=True, soft_wrap=True, highlight=False).print(text)
+
+
+class _OneLineErrors(TyperGroup):
+    """Usage errors (unknown option, bad value) in one line and exit code 2, like hlik's own errors,
+    instead of click's box; SIGTERM ends a command through ``finally`` blocks (temporaries removed)."""
+
+    def main(
+        self,
+        args: Sequence[str] | None = None,
+        prog_name: str | None = None,
+        complete_var: str | None = None,
+        standalone_mode: bool = True,
+        windows_expand_args: bool = True,
+        **extra: Any,
+    ) -> Any:
+        try:
+            with raising_on_sigterm():
+                result = super().main(
+                    args, prog_name, complete_var, False, windows_expand_args=windows_expand_args, **extra
+                )
+        except typer.TyperException as e:  # click's usage errors, as typer vendors them
+            ctx = getattr(e, "ctx", None)
+            if type(e).__name__ != "NoArgsIsHelpError":  # `hlik` alone: the help is printed
+                see = f" (see: {ctx.command_path} --help)" if ctx is not None else ""
+                _print_error(f"{e.format_message()}{see}")
+            result = 2
+        except typer.Abort:  # end of input at a prompt
+            _print_error("aborted")
+            result = 1
+        if not standalone_mode:
+            return result
+        sys.exit(result if isinstance(result, int) else 0)
+
+
 app = typer.Typer(
+    cls=_OneLineErrors,
     help="hlik: human-like bimanual motion retargeting (MMM human -> ARMAR-III, ARMAR-6, 2-Panda).",
     no_args_is_help=True,
     add_completion=False,
     pretty_exceptions_enable=False,
 )
-console = Console()
+# Output is text, not markup: file, motion and object names print as written ("[red]take.xml").
+console = Console(markup=False)
 
 MotionArg = Annotated[
     Path | None, typer.Argument(help="MMM motion file (default: the bundled demo).", show_default=False)
@@ -51,9 +111,20 @@ MetricOpt = Annotated[
 
 
 def _fail(err: HlikError) -> None:
-    # the message is text, not markup: "[weights]" or "[qp]" in it must print as written
-    Console(stderr=True).print(f"[red]error:[/red] {escape(str(err))}", highlight=False, soft_wrap=True)
+    _print_error(str(err))
     raise typer.Exit(2)
+
+
+@contextmanager
+def _one_line() -> Iterator[None]:
+    """Bad input and failed reads or writes end the command with one line and exit code 2."""
+    try:
+        yield
+    except HlikError as e:
+        _fail(e)
+    except OSError as e:  # what the readers do not name themselves (permission, full disk)
+        where = f"{e.filename}: " if e.filename else ""
+        _fail(HlikError(f"{where}{e.strerror or e}"))
 
 
 @app.command()
@@ -115,16 +186,18 @@ def run(
     from hlik.criteria.unified import load_metric
     from hlik.human.load import load_motion
     from hlik.metrics import evaluate as evaluate_trajectory
+    from hlik.paths import tasks_dir
     from hlik.placement_search import optimize_placement
     from hlik.problem.placement import placement_from_spec
-    from hlik.recording import LAYOUTS, write_recording
+    from hlik.recording import LAYOUTS
     from hlik.retarget import retarget
     from hlik.robot.model import load_robot
+    from hlik.robot.reachability import reachability_map
     from hlik.solvers import SOLVER_NAMES, get_solver
     from hlik.solvers.stack_file import load_stack
 
     path = motion or demo_motion_path()
-    try:
+    with _one_line():
         if solver not in SOLVER_NAMES:
             raise HlikError(f"unknown solver {solver!r}; choose one of: {', '.join(SOLVER_NAMES)}")
         task_stack = load_stack(stack)
@@ -141,17 +214,19 @@ def run(
         if layout not in LAYOUTS:
             raise HlikError(f"unknown layout {layout!r}; choose one of: {', '.join(LAYOUTS)}")
         _check_scenario(scenario)
-        if rate < 0:
-            raise HlikError(f"--rate must be positive (or 0 to keep the motion's rate), got {rate:g}")
+        _check_rate(rate)
+        _check_placement(placement)
         r = load_robot(robot)
         unified_metric = load_metric(metric) if metric is not None else None
         named = () if task_stack.name == "ee_pose" else (task_stack.name,)
         tag = "_".join((solver, *named, *chosen))
-        rrd = out or Path("recordings") / f"{path.stem}_{r.name}_{tag}.rrd"
-        _check_writable(rrd, create=out is None)
+        rrd = out or Path("recordings") / f"{_file_stem(path.stem, r.name, tag)}.rrd"
+        npz = rrd.with_suffix(".npz")
+        inputs = [path, metric, robot, stack, tasks_dir() / f"{stack}.toml"]
+        _check_outputs(rrd, npz, inputs, create=out is None)
         columns = (
             SpinnerColumn(),
-            TextColumn("{task.description}"),
+            TextColumn("{task.description}", markup=False),
             BarColumn(),
             MofNCompleteColumn(),
             TimeElapsedColumn(),
@@ -161,6 +236,9 @@ def run(
             m = load_motion(path, rate=rate or None)
             learned = learn(r, corpus)
             placement = placement or r.placement
+            notes = [*m.notes, *learned.notes]
+            if placement in ("reach", "optimize"):  # sampled or read once; placement reads the cache
+                notes += reachability_map(r).notes
             progress.update(task, description=f"placing {r.title} ({placement})")
             tried: list = []
             if placement == "optimize":
@@ -182,12 +260,8 @@ def run(
             progress.update(task, description="evaluating the criteria")
             ev = evaluate_trajectory(traj, r, learned, scenario=scenario, metric=unified_metric)
             progress.update(task, description=f"writing {rrd}")
-            npz = traj.save(rrd.with_suffix(".npz"))
-            write_recording(rrd, traj, r, layout=layout, metrics=ev.curves())
-    except HlikError as e:
-        _fail(e)
-    except OSError as e:
-        _fail(HlikError(f"{e.filename or rrd}: cannot write ({e.strerror or e})"))
+            write_outputs(npz, rrd, traj, r, layout, ev.curves())
+    _warn(notes)
     console.print(_run_summary(path.stem, traj, m, solve_time, rrd, npz, ev))
     if tried:
         scores = ", ".join(f"{c.name} {c.m_hl_f:.3f}" for c in tried)
@@ -219,17 +293,95 @@ def _lag_spans(fpos: np.ndarray, times: np.ndarray, shown: int = 3) -> str:
     return f"{', '.join(spans[:shown])}{more}; {int(any_off.sum())} frames"
 
 
-def _check_writable(path: Path, create: bool) -> None:
-    """Fail before solving, not after, when the output cannot be written."""
-    folder = path.parent
+def _check_rate(rate: float) -> None:
+    low, high = RATE_RANGE
+    if not (rate == 0 or low <= rate <= high):  # NaN fails both
+        raise HlikError(
+            f"--rate must be positive, {low:g} to {high:g} Hz (or 0 to keep the motion's rate), got {rate:g}"
+        )
+
+
+def _check_placement(spec: str | None) -> None:
+    """``X,Y,YAW`` must be three finite numbers (a NaN base pose scores NaN without a word)."""
+    if spec is None or "," not in spec:
+        return
+    try:
+        values = [float(v) for v in spec.split(",")]
+    except ValueError:
+        return  # placement_from_spec says what it expects
+    if len(values) == 3 and not all(math.isfinite(v) for v in values):
+        raise HlikError(f"--placement {spec}: X, Y and YAW must be finite numbers (m, m, deg)")
+
+
+def _file_stem(*parts: str) -> str:
+    """A file name stem from names read from files (motion, robot, stack): anything but letters,
+    digits, ``.``, ``+``, ``-`` and ``_`` becomes ``_``, so no name can reach another folder."""
+    return re.sub(r"[^\w.+-]", "_", "_".join(parts)).lstrip(".") or "out"
+
+
+def _check_outputs(rrd: Path, npz: Path, inputs: list, create: bool) -> None:
+    """Fail before solving, not after: the recording must be a ``.rrd`` whose folder is writable,
+    and neither output may be one of the ``inputs`` (paths or names; those that are no file are
+    skipped)."""
+    if rrd.is_dir():
+        raise HlikError(f"{rrd}: is a folder, expected a .rrd file name")
+    if rrd.suffix != ".rrd":
+        raise HlikError(
+            f"{rrd}: --out names the recording and must end in .rrd (the trajectory is written beside "
+            f"it, as {rrd.with_suffix('.npz').name})"
+        )
+    read = [Path(p) for p in inputs if p is not None and Path(p).is_file()]
+    for output in (rrd, npz):
+        for source in read:
+            if output.exists() and os.path.samefile(output, source) or output.resolve() == source.resolve():
+                raise HlikError(f"{output}: is an input of this run ({source}); choose another --out")
+    folder = rrd.parent
     if create:
         folder.mkdir(parents=True, exist_ok=True)
     if not folder.is_dir():
-        raise HlikError(f"{path}: output folder {folder} does not exist")
-    if path.is_dir():
-        raise HlikError(f"{path}: is a folder, expected a .rrd file name")
-    if not os.access(folder, os.W_OK):
-        raise HlikError(f"{path}: output folder {folder} is not writable")
+        raise HlikError(f"{rrd}: output folder {folder} does not exist")
+    if npz.is_dir():
+        raise HlikError(f"{npz}: is a folder, where the trajectory would be written")
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise HlikError(f"{rrd}: output folder {folder} is not writable")
+
+
+def write_outputs(
+    npz: Path,
+    rrd: Path,
+    traj: Trajectory,
+    robot: Robot,
+    layout: str = "side",
+    metrics: Mapping[str, np.ndarray] | None = None,
+) -> None:
+    """Write the trajectory ``npz`` and its recording ``rrd`` together: both appear, or neither
+    (:func:`hlik.atomic.atomic_paths`; a failed, interrupted or terminated write leaves no file).
+
+    Raises:
+        HlikError: naming the file that could not be written (never the temporary).
+    """
+    from hlik.atomic import atomic_paths
+    from hlik.recording import write_recording
+
+    with _writing(npz, rrd), atomic_paths(npz, rrd) as (npz_tmp, rrd_tmp):
+        with _writing(npz):
+            traj.save(npz_tmp)
+        with _writing(rrd):
+            write_recording(rrd_tmp, traj, robot, layout=layout, metrics=metrics)
+
+
+@contextmanager
+def _writing(*paths: Path) -> Iterator[None]:
+    """Turn a failed write into one line naming the file (the first of ``paths`` unless the error
+    names another)."""
+    try:
+        yield
+    except OSError as e:
+        named = Path(e.filename) if e.filename else None
+        path = named if named in paths else paths[0]
+        raise HlikError(f"{path}: cannot write ({e.strerror or e})") from None
+    except RuntimeError as e:  # Rerun reports a failed write (full disk) as a RuntimeError
+        raise HlikError(f"{paths[0]}: cannot write ({' '.join(str(e).split())})") from None
 
 
 def _run_summary(title: str, traj, motion, solve_time: float, rrd: Path, npz: Path, ev) -> Table:
@@ -280,8 +432,9 @@ def _run_summary(title: str, traj, motion, solve_time: float, rrd: Path, npz: Pa
         "hands relative",
         f"fPOS_off mean {100 * off_pos.mean():.1f} cm, fORI_off mean {np.degrees(off_rot.mean()):.1f}°",
     )
-    table.add_row("recording", f"{rrd}  (open with: rerun {rrd})")
-    table.add_row("trajectory", str(npz))
+    size = lambda path: f"{path.stat().st_size / 1e6:.1f} MB"  # noqa: E731
+    table.add_row("recording", f"{rrd} ({size(rrd)}; open with: rerun {rrd})")
+    table.add_row("trajectory", f"{npz} ({size(npz)})")
     return table
 
 
@@ -298,18 +451,23 @@ def evaluate(
 
     from hlik.criteria.learned import learn
     from hlik.criteria.unified import load_metric, midpoints
+    from hlik.errors import RobotError
     from hlik.metrics import evaluate as evaluate_trajectory
     from hlik.robot.model import load_robot
-    from hlik.trajectory import load_trajectory
+    from hlik.trajectory import check_robot, load_trajectory
 
-    try:
+    with _one_line():
         _check_scenario(scenario)
         unified_metric = load_metric(metric) if metric is not None else None
         traj = load_trajectory(trajectory)
-        r = load_robot(traj.robot)
-        ev = evaluate_trajectory(traj, r, learn(r, corpus), scenario=scenario, metric=unified_metric)
-    except HlikError as e:
-        _fail(e)
+        try:
+            r = load_robot(traj.robot)
+        except RobotError as e:
+            raise HlikError(f"{trajectory}: robot: {e}") from None
+        check_robot(trajectory, traj, r)
+        learned = learn(r, corpus)
+        ev = evaluate_trajectory(traj, r, learned, scenario=scenario, metric=unified_metric)
+    _warn(learned.notes)
     if json_out:
         sys.stdout.write(json.dumps(ev.to_json(), indent=2) + "\n")
         return
@@ -334,10 +492,11 @@ def learn(
 
     paper = {"armar3": 7.25, "armar6": 8.76, "dual_panda": 4.7}
     table = Table("robot", "corpus", "PCA var. (5)", "1st-order var. (5)", "Psi rms", "lambda_R", "paper")
-    try:
+    with _one_line():
         for name in robots or available_robots():
             r = load_robot(name)
             lrn = learn_robot(r, corpus)
+            _warn(lrn.notes)
             table.add_row(
                 r.name,
                 f"{len(lrn.corpus)} files",
@@ -347,10 +506,9 @@ def learn(
                 f"{lrn.scale:.2f}",
                 f"{paper.get(r.name, float('nan')):g}",
             )
-    except HlikError as e:
-        _fail(e)
+        folder = cache_dir()
     console.print(table)
-    console.print(f"cache: {cache_dir()}")
+    console.print(f"cache: {folder}")
 
 
 def _check_scenario(scenario: str) -> None:
@@ -408,9 +566,9 @@ def study(
     from hlik.study.runner import plan, run_study
 
     folder = takes or _default_takes()
-    try:
-        if seconds is not None and seconds <= 0:
-            raise HlikError(f"--seconds must be positive, got {seconds:g}")
+    with _one_line():
+        if seconds is not None and not (math.isfinite(seconds) and seconds > 0):
+            raise HlikError(f"--seconds must be positive and finite, got {seconds:g}")
         if workers is not None and workers < 1:
             raise HlikError(f"--workers must be at least 1, got {workers}")
         files = sorted(folder.glob("*.xml")) if folder.is_dir() else [folder]
@@ -426,16 +584,19 @@ def study(
             f"study: {len(files)} takes x {len(names)} robots x {len(listed)} approaches = "
             f"{n_cells} cells -> {out}/"
         )
-        columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn())
+        columns = (
+            TextColumn("{task.description}", markup=False),
+            BarColumn(),
+            MofNCompleteColumn(),
+            TimeElapsedColumn(),
+        )
         with Progress(*columns, console=Console(stderr=True), transient=True) as progress:
             task = progress.add_task("cells", total=n_cells)
             advance = lambda o: progress.update(task, advance=1, description=o.cell.file_name[:48])  # noqa: E731
             result = run_study(files, names, listed, out, seconds, workers, address, advance, corpus)
-    except HlikError as e:
-        _fail(e)
     failed = [o for o in result.outcomes if o.error]
     for o in failed:
-        console.print(f"[yellow]failed[/yellow] {o.cell.file_name}: {o.error}", highlight=False)
+        console.print(Text.assemble(("failed", "yellow"), f" {o.cell.file_name}: {o.error}"), highlight=False)
     for ranking in result.rankings:
         table = Table(
             "approach", "m_hl", "m_f", "m_hl,f", title=f"best approaches, {ranking.scenario} scenario"
@@ -480,11 +641,12 @@ def info(motion: MotionArg = None) -> None:
     from hlik.human.load import load_motion
 
     path = motion or demo_motion_path()
-    try:
+    with _one_line():
         m = load_motion(path)
-    except HlikError as e:
-        _fail(e)
+    _warn(m.notes)
     table = Table(show_header=False, box=None)
+    table.add_column(no_wrap=True)
+    table.add_column(overflow="fold")
     table.add_row("file", str(path))
     table.add_row("motion", m.name)
     table.add_row("subject", f"{m.height:.2f} m" + (f", {m.mass:g} kg" if m.mass else ""))
@@ -508,10 +670,8 @@ def calibrate(
     from hlik.robot.calibrate import mapping_toml
     from hlik.robot.model import load_robot
 
-    try:
+    with _one_line():
         r = load_robot(robot)
-    except HlikError as e:
-        _fail(e)
     cal = run_calibration(r)
     if toml:
         sys.stdout.write(mapping_toml(r, cal.mapping))
@@ -545,9 +705,9 @@ def calibrate(
     stored = r.mapping
     same = all(_close(stored.get(m.joint), m) for m in cal.mapping.joints)
     console.print(
-        "matches robots/" + f"{r.name}.toml"
+        f"matches robots/{r.name}.toml"
         if same
-        else f"[yellow]differs from robots/{r.name}.toml[/yellow] (print with --toml)"
+        else Text.assemble((f"differs from robots/{r.name}.toml", "yellow"), " (print with --toml)")
     )
 
 

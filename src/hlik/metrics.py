@@ -75,6 +75,9 @@ class Evaluation:
         }
 
 
+COST_CHUNK = 4096  # frames whose Jacobians are held at once (7.7 kB a frame on ARMAR-6)
+
+
 def trajectory_sample(traj: Trajectory, reference: HumanReference) -> Sample:
     """The :class:`Sample` of every frame of ``traj``: its targets, the human reference, the previous
     three configurations (the first frame repeated before the start) and the median frame period."""
@@ -85,15 +88,22 @@ def costs(traj: Trajectory, robot: Robot, learned: Learned) -> dict[str, np.ndar
     """Criterion name -> (T,) cost h(t) of every registered criterion, functional ones included.
 
     Each is the criterion's own :meth:`~hlik.criteria.base.Term.cost` of its residual, the cost the
-    solvers report, computed for all frames after one forward-kinematics pass.
+    solvers report, computed :data:`COST_CHUNK` frames at a time (one forward-kinematics pass each)
+    so that memory does not grow with the take.
     """
-    sample = trajectory_sample(traj, traj.reference)
     criteria = [
         registry.criterion(n, robot, learned) for n in registry.human_likeness() + registry.functional()
     ]
     sites = tuple(sorted({i for c in criteria for i in c.value_sites}))
-    state = robot_state(robot, traj.q, jacobians=bool(sites), jacobian_sites=sites)
-    return {c.name: c.cost(c.residual(state, sample)) for c in criteria}
+    dt, parts = frame_period(traj.times), []
+    for start in range(0, traj.n_frames, COST_CHUNK):
+        rows = slice(start, start + COST_CHUNK)
+        # the three configurations before each frame of the chunk (the first repeated before the start)
+        past = history(traj.q[max(start - 3, 0) : rows.stop])[min(start, 3) :]
+        sample = reference_sample(traj.reference, traj.targets, rows, past, dt)
+        state = robot_state(robot, traj.q[rows], jacobians=bool(sites), jacobian_sites=sites)
+        parts.append({c.name: c.cost(c.residual(state, sample)) for c in criteria})
+    return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
 
 
 def evaluate(

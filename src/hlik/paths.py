@@ -5,6 +5,8 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+from hlik.errors import SettingsError
+
 _PACKAGE = Path(__file__).resolve().parent
 
 
@@ -31,7 +33,27 @@ def demo_motion_path() -> Path:
 
 def cache_dir() -> Path:
     """Where fitted and sampled pieces are cached: ``$HLIK_CACHE``, else ``$XDG_CACHE_HOME/hlik``,
-    else ``~/.cache/hlik``."""
-    if "HLIK_CACHE" in os.environ:
-        return Path(os.environ["HLIK_CACHE"])
-    return Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "hlik"
+    else ``~/.cache/hlik``; created if missing.
+
+    A folder that exists but is not writable is returned: its entries can still be read, and the
+    writers note what they could not cache.
+
+    Raises:
+        SettingsError: the place is a file, or the folder cannot be created (naming the variable
+            it came from).
+    """
+    if os.environ.get("HLIK_CACHE"):
+        folder, source = Path(os.environ["HLIK_CACHE"]), "HLIK_CACHE"
+    elif os.environ.get("XDG_CACHE_HOME"):
+        folder, source = Path(os.environ["XDG_CACHE_HOME"]) / "hlik", "XDG_CACHE_HOME"
+    else:
+        folder, source = Path.home() / ".cache" / "hlik", "the default cache folder"
+    if folder.exists() and not folder.is_dir():
+        raise SettingsError(f"{folder} ({source}): is a file, expected a folder for the cache")
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise SettingsError(
+            f"{folder} ({source}): cannot create the cache folder ({e.strerror or e})"
+        ) from None
+    return folder

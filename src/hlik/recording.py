@@ -16,13 +16,19 @@ Entity tree::
     /plots/solver/{iterations,failed}   solver diagnostics per frame
 
 Timelines: ``frame`` (index) and ``time`` (seconds). Everything time-varying goes through
-``send_columns``; log time is disabled so the same input gives the same file.
+``send_columns``, chunk by chunk of frames (:data:`CHUNK_FRAMES`), so that a long take needs no
+more memory than a short one to draw; log time is disabled so the same input gives the same file.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+import errno
+import functools
+import shutil
+from collections.abc import Callable, Iterator, Mapping
+from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -34,7 +40,7 @@ from hlik.atomic import atomic_path
 from hlik.criteria.functional import position_error, rotation_angle
 from hlik.fk import body_poses
 from hlik.human.kinematics import human_model, qpos_trajectory
-from hlik.human.motion import ObjectMotion
+from hlik.human.motion import HumanMotion, ObjectMotion
 from hlik.problem.placement import Placement
 from hlik.robot.model import COLLISION_GROUP, SIDES, Robot
 from hlik.trajectory import Trajectory
@@ -46,6 +52,11 @@ SPACING = 1.2  # m between human and robot shoulders in the side-by-side layout
 
 _FILL = rr.components.FillMode.Solid
 
+# Frames per chunk of columns. Each chunk is computed, sent and flushed before the next, so memory
+# is bounded by it, not by the take. 4096 rows is where the viewer's store stops compacting
+# (RERUN_CHUNK_MAX_ROWS); smaller chunks cost time, file size and footer memory per chunk.
+CHUNK_FRAMES = 4096
+
 
 def write_recording(
     path: str | Path,
@@ -53,8 +64,14 @@ def write_recording(
     robot: Robot,
     layout: str = "side",
     metrics: Mapping[str, np.ndarray] | None = None,
+    chunk_frames: int = CHUNK_FRAMES,
 ) -> Path:
-    """Write ``trajectory`` as a Rerun ``.rrd`` file, atomically.
+    """Write ``trajectory`` as a Rerun ``.rrd`` file, atomically: exactly ``path`` appears, whole.
+
+    Time-varying data (body poses, errors, curves) is computed and sent ``chunk_frames`` frames at
+    a time, so the memory it takes does not grow with the take; what does is the static part: the
+    hand paths and the object-frame marker positions a box is fitted to (about 0.2 kB a frame for
+    a KIT take, against 2.2 kB a frame the trajectory holds).
 
     Args:
         path: Output file.
@@ -63,20 +80,45 @@ def write_recording(
         layout: ``"side"`` (robot beside the human) or ``"overlay"`` (robot placed on the human).
         metrics: Criterion name -> (T,) per-frame score f_x0(h(t)), logged under ``/plots/metrics``
             (see :meth:`hlik.metrics.Evaluation.curves`).
+        chunk_frames: Frames per chunk of columns (positive); the file shows the same for any.
     """
     if layout not in LAYOUTS:
         raise ValueError(f"layout must be one of {LAYOUTS}, got {layout!r}")
+    if chunk_frames < 1:
+        raise ValueError(f"chunk_frames must be positive, got {chunk_frames}")
+    for name, values in (metrics or {}).items():
+        if np.shape(values) != (trajectory.n_frames,):
+            raise ValueError(f"metric {name!r}: {np.shape(values)} values for {trajectory.n_frames} frames")
     path = Path(path)
+    _check_space(path, trajectory.n_frames)
     recording_id = f"{trajectory.motion.name}-{robot.name}-{trajectory.solver}"
     with atomic_path(path) as tmp:
         rec = rr.RecordingStream("hlik", recording_id=recording_id)
         try:
             rec.set_log_time_enabled(False)
             rec.save(tmp, default_blueprint=blueprint())
-            _log(rec, trajectory, robot, layout, metrics or {})
+            _log(rec, trajectory, robot, layout, metrics or {}, chunk_frames)
         finally:
             rec.disconnect()  # writes the footer; the file is complete only now
     return path
+
+
+# Bytes a recording takes per frame at most, with room to spare (KIT takes on the three robots:
+# 3.2-3.4 kB; 10 minutes of the Cut take looped: 2.9 kB).
+BYTES_PER_FRAME = 8_000
+
+
+def _check_space(path: Path, n_frames: int) -> None:
+    """Refuse to start a recording the disk cannot hold: Rerun 0.41's file sink blocks for ever on a
+    full disk (flush and disconnect both wait), so running out midway would hang the writer."""
+    need = 1_000_000 + BYTES_PER_FRAME * n_frames
+    free = shutil.disk_usage(path.parent if str(path.parent) else ".").free
+    if free < need:
+        raise OSError(
+            errno.ENOSPC,
+            f"No space left on device ({free / 1e6:.1f} MB free, {need / 1e6:.1f} MB needed)",
+            str(path),
+        )
 
 
 def blueprint() -> rrb.Blueprint:
@@ -97,16 +139,40 @@ def blueprint() -> rrb.Blueprint:
     )
 
 
-def _log(rec, traj: Trajectory, robot: Robot, layout: str, metrics: Mapping[str, np.ndarray]) -> None:
-    index = _index(np.arange(traj.n_frames), traj.times)
+# One entity's columns for some frames: (entity path, time columns, component columns).
+Columns = tuple[str, list[rr.TimeColumn], Any]
+# The time-varying data of one or more entities: frames (a slice of the take) -> their columns.
+Track = Callable[[slice], Iterator[Columns]]
+# A scalar curve: (T,) values, or the values of the frames (a slice).
+Curve = np.ndarray | Callable[[slice], np.ndarray]
+
+
+def _log(
+    rec,
+    traj: Trajectory,
+    robot: Robot,
+    layout: str,
+    metrics: Mapping[str, np.ndarray],
+    chunk_frames: int = CHUNK_FRAMES,
+) -> None:
+    """Log everything static once, then every track chunk by chunk of ``chunk_frames`` frames."""
     rec.log("/world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
+    times = traj.times
 
     human = human_model(traj.motion.height)
-    _log_model(rec, "/world/human/bodies", human, qpos_trajectory(human, traj.motion), index, alpha=200)
-    human_hands = traj.placement.to_world(traj.targets.pos)
-    _log_paths(rec, "/world/human/hand_paths", human_hands, SIDE_COLORS)
+    tracks = [
+        _model(
+            rec,
+            "/world/human/bodies",
+            human,
+            lambda rows: qpos_trajectory(human, _frames(traj.motion, rows)),
+            times,
+            alpha=200,
+        )
+    ]
+    _log_paths(rec, "/world/human/hand_paths", traj.placement.to_world(traj.targets.pos), SIDE_COLORS)
     for name, obj in traj.motion.objects.items():
-        _log_object(rec, f"/world/objects/{_entity(name)}", obj, traj.times)
+        tracks += _object(rec, f"/world/objects/{_entity(name)}", obj, times, chunk_frames)
 
     # The robot base as drawn (the side layout shifts it beside the human; overlay shows it where
     # the placement put it) and the rule that placed it.
@@ -126,27 +192,45 @@ def _log(rec, traj: Trajectory, robot: Robot, layout: str, metrics: Mapping[str,
         rr.Transform3D(translation=shown.translation, mat3x3=shown.rotation),
         static=True,
     )
-    _log_model(rec, "/world/robot/bodies", robot.model, traj.q, index, alpha=255)
+    tracks.append(
+        _model(rec, "/world/robot/bodies", robot.model, lambda rows: traj.q[rows], times, alpha=255)
+    )
     _log_paths(rec, "/world/robot/target_paths", traj.targets.pos, TARGET_COLORS)
     _log_paths(rec, "/world/robot/tcp_paths", traj.tcp_pos, SIDE_COLORS)
     for i, side in enumerate(SIDES):
-        _log_frames(
-            rec, f"/world/robot/targets/{side}", traj.targets.pos[:, i], traj.targets.rot[:, i], index
+        tracks.append(
+            _frames_track(
+                rec, f"/world/robot/targets/{side}", traj.targets.pos[:, i], traj.targets.rot[:, i], times
+            )
         )
-        _log_frames(rec, f"/world/robot/tcp/{side}", traj.tcp_pos[:, i], traj.tcp_rot[:, i], index)
+        tracks.append(
+            _frames_track(rec, f"/world/robot/tcp/{side}", traj.tcp_pos[:, i], traj.tcp_rot[:, i], times)
+        )
 
+    # curves: entity -> (T,) values, or the values of some frames (the tracking errors, computed
+    # chunk by chunk like everything else derived)
+    curves: dict[str, Curve] = {}
     for j, name in enumerate(traj.joint_names):
-        _log_curve(rec, f"/plots/joints/{_entity(name)}", traj.q[:, j], index, name)
-    fpos = position_error(traj.tcp_pos, traj.targets.pos)
-    fori = rotation_angle(traj.tcp_rot, traj.targets.rot)
+        curves[_curve(rec, f"/plots/joints/{_entity(name)}", name)] = traj.q[:, j]
     for i, side in enumerate(SIDES):
-        _log_curve(rec, f"/plots/fPOS/{side}", fpos[:, i], index, f"fPOS {side}", SIDE_COLORS[side])
-        _log_curve(rec, f"/plots/fORI/{side}", fori[:, i], index, f"fORI {side}", SIDE_COLORS[side])
+        fpos = _error(position_error, traj.tcp_pos[:, i], traj.targets.pos[:, i])
+        fori = _error(rotation_angle, traj.tcp_rot[:, i], traj.targets.rot[:, i])
+        curves[_curve(rec, f"/plots/fPOS/{side}", f"fPOS {side}", SIDE_COLORS[side])] = fpos
+        curves[_curve(rec, f"/plots/fORI/{side}", f"fORI {side}", SIDE_COLORS[side])] = fori
     for name, values in metrics.items():
-        _log_curve(rec, f"/plots/metrics/{_entity(name)}", np.asarray(values, dtype=float), index, name)
+        curves[_curve(rec, f"/plots/metrics/{_entity(name)}", name)] = np.asarray(values, dtype=float)
     d = traj.diagnostics
-    _log_curve(rec, "/plots/solver/iterations", d.iterations.astype(float), index, "iterations")
-    _log_curve(rec, "/plots/solver/failed", d.failed.astype(float), index, "failed (1)")
+    curves[_curve(rec, "/plots/solver/iterations", "iterations")] = d.iterations.astype(float)
+    curves[_curve(rec, "/plots/solver/failed", "failed (1)")] = d.failed.astype(float)
+    tracks.append(functools.partial(_curve_columns, curves, times))
+
+    for start in range(0, traj.n_frames, chunk_frames):
+        rows = slice(start, min(start + chunk_frames, traj.n_frames))
+        for track in tracks:
+            for entity, index, columns in track(rows):
+                rec.send_columns(entity, indexes=index, columns=columns)
+        # the file sink encodes on its own thread: wait for it, so that sent chunks never pile up
+        rec.flush()
 
 
 def _display_placement(placement: Placement, layout: str) -> Placement:
@@ -156,9 +240,12 @@ def _display_placement(placement: Placement, layout: str) -> Placement:
     return Placement(placement.rotation, placement.translation + SPACING * placement.rotation[:, 0])
 
 
-def _log_model(rec, root: str, model: mujoco.MjModel, qpos: np.ndarray, index: list, alpha: int) -> None:
-    """Static geometry per body, then the body poses of every frame as transform columns."""
-    pos, quat = body_poses(model, qpos)
+def _model(
+    rec, root: str, model: mujoco.MjModel, qpos: Callable[[slice], np.ndarray], times: np.ndarray, alpha: int
+) -> Track:
+    """Log the static geometry of every body with some; the track of their poses, from
+    ``qpos(frames)`` (F, nq) by forward kinematics."""
+    bodies = []
     for body in range(1, model.nbody):
         entity = f"{root}/{_entity(model.body(body).name) or f'body{body}'}"
         # collision volumes are for the solvers, not the eye
@@ -171,11 +258,16 @@ def _log_model(rec, root: str, model: mujoco.MjModel, qpos: np.ndarray, index: l
             continue
         for archetype_name, archetype in _geometry(model, geoms, alpha).items():
             rec.log(f"{entity}/{archetype_name}", archetype, static=True)
-        rec.send_columns(
-            entity,
-            indexes=index,
-            columns=rr.Transform3D.columns(translation=pos[:, body], quaternion=_xyzw(quat[:, body])),
-        )
+        bodies.append((body, entity))
+
+    def track(rows: slice) -> Iterator[Columns]:
+        pos, quat = body_poses(model, qpos(rows))
+        index = _index(times, rows)
+        for body, entity in bodies:
+            columns = rr.Transform3D.columns(translation=pos[:, body], quaternion=_xyzw(quat[:, body]))
+            yield entity, index, columns
+
+    return track
 
 
 def _geometry(model: mujoco.MjModel, geoms: list[int], alpha: int) -> dict[str, rr.AsComponents]:
@@ -243,25 +335,25 @@ def _log_paths(rec, entity: str, pos: np.ndarray, colors: Mapping[str, tuple]) -
     )
 
 
-def _log_frames(rec, entity: str, pos: np.ndarray, rot: np.ndarray, index: list) -> None:
+def _frames_track(rec, entity: str, pos: np.ndarray, rot: np.ndarray, times: np.ndarray) -> Track:
+    """Log axes at ``entity``; the track of its poses (T, 3) and (T, 3, 3)."""
     rec.log(entity, rr.TransformAxes3D(0.08), static=True)
-    rec.send_columns(entity, indexes=index, columns=_pose_columns(pos, rot))
+
+    def track(rows: slice) -> Iterator[Columns]:
+        yield entity, _index(times, rows), _pose_columns(pos[rows], rot[rows])
+
+    return track
 
 
-def _log_object(rec, entity: str, obj: ObjectMotion, times: np.ndarray) -> None:
-    """A scene object as a box around its markers (or a 5 cm cube), where its pose is finite."""
+def _object(rec, entity: str, obj: ObjectMotion, times: np.ndarray, chunk_frames: int) -> list[Track]:
+    """Log a scene object as a box around its markers (or a 5 cm cube); the track of its pose,
+    where that is finite (none if it never is)."""
     known = np.all(np.isfinite(obj.position), axis=1) & np.all(np.isfinite(obj.rotation), axis=(1, 2))
     if not known.any():
-        return
+        return []
     half, center = np.full(3, 0.025), np.zeros(3)
     if obj.markers:
-        # marker positions in the object frame, over the frames where everything is known
-        local = np.concatenate(
-            [
-                np.einsum("tji,tj->ti", obj.rotation[known], m[known] - obj.position[known])
-                for m in obj.markers.values()
-            ]
-        )
+        local = _local_markers(obj, np.flatnonzero(known), chunk_frames)
         local = local[np.all(np.isfinite(local), axis=1)]
         if len(local):
             lo, hi = np.percentile(local, [2, 98], axis=0)
@@ -277,22 +369,65 @@ def _log_object(rec, entity: str, obj: ObjectMotion, times: np.ndarray) -> None:
         ),
         static=True,
     )
-    frames = np.flatnonzero(known)
-    rec.send_columns(
-        entity,
-        indexes=_index(frames, times[frames]),
-        columns=_pose_columns(obj.position[known], obj.rotation[known]),
-    )
+
+    def track(rows: slice) -> Iterator[Columns]:
+        frames = rows.start + np.flatnonzero(known[rows])
+        if len(frames):
+            index = [rr.TimeColumn("frame", sequence=frames), rr.TimeColumn("time", duration=times[frames])]
+            yield entity, index, _pose_columns(obj.position[frames], obj.rotation[frames])
+
+    return [track]
 
 
-def _log_curve(rec, entity: str, values: np.ndarray, index: list, name: str, color=None) -> None:
+def _local_markers(obj: ObjectMotion, frames: np.ndarray, chunk_frames: int) -> np.ndarray:
+    """(M * F, 3) positions of the M markers in the object's frame at ``frames`` (F,), marker by
+    marker; computed ``chunk_frames`` frames at a time into one array, the only one as long as the take."""
+    local = np.empty((len(obj.markers), len(frames), 3))
+    for start in range(0, len(frames), chunk_frames):
+        rows = frames[start : start + chunk_frames]
+        rot, pos = obj.rotation[rows], obj.position[rows]
+        for i, m in enumerate(obj.markers.values()):
+            local[i, start : start + len(rows)] = np.einsum("tji,tj->ti", rot, m[rows] - pos)
+    return local.reshape(-1, 3)
+
+
+def _curve(rec, entity: str, name: str, color=None) -> str:
+    """Log the style of a scalar curve at ``entity``; returns ``entity``."""
     style = rr.SeriesLines(names=name) if color is None else rr.SeriesLines(names=name, colors=[color])
     rec.log(entity, style, static=True)
-    rec.send_columns(entity, indexes=index, columns=rr.Scalars.columns(scalars=values))
+    return entity
 
 
-def _index(frames: np.ndarray, times: np.ndarray) -> list[rr.TimeColumn]:
-    return [rr.TimeColumn("frame", sequence=frames), rr.TimeColumn("time", duration=times)]
+def _error(error: Callable, a: np.ndarray, b: np.ndarray) -> Callable[[slice], np.ndarray]:
+    """The curve ``error(a[rows], b[rows])`` of the frames ``rows``."""
+    return lambda rows: error(a[rows], b[rows])
+
+
+def _curve_columns(curves: Mapping[str, Curve], times: np.ndarray, rows: slice) -> Iterator[Columns]:
+    """The track of scalar curves."""
+    index = _index(times, rows)
+    for entity, values in curves.items():
+        scalars = values(rows) if callable(values) else values[rows]
+        yield entity, index, rr.Scalars.columns(scalars=scalars)
+
+
+def _index(times: np.ndarray, rows: slice) -> list[rr.TimeColumn]:
+    """The ``frame`` and ``time`` columns of the frames ``rows`` (a slice with start and stop)."""
+    return [
+        rr.TimeColumn("frame", sequence=np.arange(rows.start, rows.stop)),
+        rr.TimeColumn("time", duration=times[rows]),
+    ]
+
+
+def _frames(motion: HumanMotion, rows: slice) -> HumanMotion:
+    """The frames ``rows`` of ``motion``, as far as :func:`qpos_trajectory` reads it (no copies)."""
+    return replace(
+        motion,
+        times=motion.times[rows],
+        joints=motion.joints[rows],
+        root_position=motion.root_position[rows],
+        root_rotation=motion.root_rotation[rows],
+    )
 
 
 def _pose_columns(pos: np.ndarray, rot: np.ndarray):

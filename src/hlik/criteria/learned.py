@@ -4,33 +4,38 @@ They are fitted on a corpus of human motions (a folder of MMM files chosen by th
 the bundled demo) and cached on disk, keyed by robot and corpus content, so a change of either
 refits. The corpus is resampled to 100 Hz, the first and last second of each recording dropped,
 and every motion also mirrored (paper Sec. III-B).
+
+A cache entry carries its key (format, robot name, model hash, corpus hash) and a checksum of its
+arrays (:func:`hlik.robot.reachability.read_entry`): one replaced by another robot's, edited,
+truncated or unreadable is fitted again, and :attr:`Learned.notes` says so in one line.
 """
 
 from __future__ import annotations
 
 import hashlib
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
-from hlik.atomic import atomic_path
+from hlik.cache import UNREADABLE, entry_path, read_entry, write_entry
 from hlik.criteria.eea import SwivelPredictor
 from hlik.criteria.manipulability import scale_factor
 from hlik.criteria.synergy import Synergies, fit_synergies
-from hlik.errors import HlikError
+from hlik.errors import HlikError, MotionFormatError
 from hlik.human.kinematics import forward_kinematics, shoulder_frame
 from hlik.human.load import load_motion
 from hlik.human.motion import HumanMotion
-from hlik.paths import cache_dir, demo_motion_path, robots_dir
+from hlik.paths import demo_motion_path, robots_dir
 from hlik.robot.model import SIDES, Robot, joint_mapping
+from hlik.robot.reachability import model_key
 
 RATE = 100.0
 TRIM = 1.0  # s dropped at each end of a recording
 # 4: first-order synergies over the joints the mapping moves, Psi_human on x-z-y hand angles,
-# root rotations resampled by C2 splines
-CACHE_VERSION = "learned/4"
+# root rotations resampled by C2 splines; 5: entries carry their key and a checksum
+CACHE_VERSION = "learned/5"
 
 
 @dataclass(frozen=True, eq=False)
@@ -44,6 +49,8 @@ class Learned:
         swivel: The Psi_human regressor refitted on the corpus (formulas.md §1.2).
         swivel_rms: Its RMS error on the corpus, rad.
         scale: lambda_R, the manipulability scale of the robot against the normalised MMM model.
+        notes: One line per thing worth telling about where these came from (a cache entry that
+            was unreadable or did not match and was fitted again, or could not be written).
     """
 
     robot: str
@@ -52,6 +59,7 @@ class Learned:
     swivel: SwivelPredictor
     swivel_rms: float
     scale: float
+    notes: tuple[str, ...] = ()
 
 
 def corpus_files(folder: str | Path | None = None) -> list[Path]:
@@ -66,18 +74,34 @@ def corpus_files(folder: str | Path | None = None) -> list[Path]:
 
 
 def learn(robot: Robot, corpus: str | Path | None = None, cache: bool = True) -> Learned:
-    """Fit (or load from the cache) the learned pieces of ``robot`` on a corpus folder."""
+    """Fit (or load from the cache) the learned pieces of ``robot`` on a corpus folder.
+
+    A cache entry that is unreadable, edited or written for another key is fitted again and
+    rewritten; the result's ``notes`` say so (as they say when the entry cannot be written).
+    """
     files = corpus_files(corpus)
-    path = cache_dir() / f"{robot.name}-{_key(robot, files)}.npz"
-    if cache and path.is_file():
-        try:
-            return _load(path)
-        except (OSError, KeyError, ValueError):
-            pass  # a stale or broken cache entry is refitted
+    key = {
+        "format": CACHE_VERSION,
+        "robot": robot.name,
+        "model": model_key(robot),
+        "corpus": corpus_key(files),
+    }
+    path = entry_path(robot.name, key)
+    notes = []
+    if cache:
+        arrays, problem = read_entry(path, key)
+        if arrays is not None:
+            try:
+                return _from_arrays(arrays)
+            except UNREADABLE as e:  # whole and of this key, yet not learned pieces
+                problem = f"does not hold learned pieces ({type(e).__name__})"
+        if problem is not None:
+            notes.append(f"{path}: cache entry {problem}; fitted again")
     learned = fit(robot, [load_motion(f, rate=RATE) for f in files], tuple(f.name for f in files))
     if cache:
-        _save(learned, path)
-    return learned
+        failed = write_entry(path, _to_arrays(learned), key)
+        notes += [failed] if failed else []
+    return replace(learned, notes=tuple(notes))
 
 
 def fit(robot: Robot, motions: Sequence[HumanMotion], names: tuple[str, ...] = ()) -> Learned:
@@ -115,17 +139,23 @@ def _body_frame_kinematics(motions: Sequence[HumanMotion]) -> tuple[np.ndarray, 
     return tuple(np.concatenate([p[i] for p in parts]) for i in range(5))
 
 
-def _key(robot: Robot, files: Sequence[Path]) -> str:
-    digest = hashlib.sha256(CACHE_VERSION.encode())
-    for path in (robots_dir() / f"{robot.name}.toml", robot.mjcf, robots_dir() / "mjcf" / "mmm.xml", *files):
+def corpus_key(files: Sequence[Path]) -> str:
+    """Hex digest of the human side of the learned pieces: the MMM model and the corpus files
+    (names and contents)."""
+    digest = hashlib.sha256()
+    for path in (robots_dir() / "mjcf" / "mmm.xml", *files):
+        try:
+            data = Path(path).read_bytes()
+        except OSError as e:
+            raise MotionFormatError(path, f"cannot read the corpus file: {e.strerror or e}") from None
         digest.update(Path(path).name.encode())
-        digest.update(Path(path).read_bytes())
-    return digest.hexdigest()[:16]
+        digest.update(data)
+    return digest.hexdigest()
 
 
-def _save(learned: Learned, path: Path) -> None:
+def _to_arrays(learned: Learned) -> dict[str, np.ndarray]:
     s = learned.synergies
-    arrays = {
+    return {
         "robot": np.array(learned.robot),
         "corpus": np.array(learned.corpus, dtype=str),
         "swivel_coef": learned.swivel.coef,
@@ -133,14 +163,9 @@ def _save(learned: Learned, path: Path) -> None:
         "scale": np.array(learned.scale),
         **{f"syn.{k}": getattr(s, k) for k in Synergies.__dataclass_fields__},
     }
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with atomic_path(path) as tmp, open(tmp, "wb") as f:
-        np.savez(f, **arrays)
 
 
-def _load(path: Path) -> Learned:
-    with np.load(path, allow_pickle=False) as z:
-        a = {k: z[k] for k in z.files}
+def _from_arrays(a: dict[str, np.ndarray]) -> Learned:
     synergies = Synergies(**{k: a[f"syn.{k}"] for k in Synergies.__dataclass_fields__})
     return Learned(
         robot=str(a["robot"]),

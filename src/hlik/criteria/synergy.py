@@ -103,7 +103,9 @@ def fit_synergies(
     moving = np.ones(len(idx), dtype=bool) if moving is None else np.asarray(moving, dtype=bool)
     stacked = np.concatenate(poses)
     pose_pca = PCA(n_components=k).fit(stacked)
-    vel = np.concatenate([velocities(p[:, moving], dt) for p in poses])
+    # unlimited joints difference as angles: a recorded angle wrapping at ±pi is no 2 pi jump
+    unwrapped = [np.where(unlimited, np.unwrap(p, axis=0), p) for p in poses]
+    vel = np.concatenate([velocities(p[:, moving], dt) for p in unwrapped])
     # a joint the corpus barely moves gets a floor, or any motion of it would dominate the rest
     std = vel.std(axis=0)
     scale = np.maximum(std, 0.05 * std.max() + 1e-9)

@@ -1,12 +1,15 @@
 """Recorded human motion on the MMM model: the first stage of hlik's data flow.
 
 A :class:`HumanMotion` holds what an MMM file records about the subject (joint angles by name,
-root pose, markers, height) and the objects of the scene, in SI units on one time base.
+root pose, markers, height) and the objects of the scene, in SI units on one time base. Marker
+positions and object poses are NaN where the recording does not have them (a marker hidden from the
+cameras, an object stream that ends early); the subject's joints and root pose are always known.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+import math
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -23,6 +26,33 @@ ARM_JOINTS: dict[str, tuple[str, ...]] = {
     for side, p in (("left", "L"), ("right", "R"))
 }
 
+# The MMM model's ranges of those joints, rad (kinematics.md §1.2; robots/mjcf/mmm.xml has the same).
+ARM_RANGES: dict[str, tuple[float, float]] = {
+    **{
+        f"{p}{j}_joint": r
+        for p in "LR"
+        for j, r in (
+            ("Sx", (-1.22173, 3.31613)),
+            ("Ex", (0.0, 2.79253)),
+            ("Ez", (-1.5708, 1.5708)),
+            ("Wx", (-0.523599, 0.349066)),
+        )
+    },
+    "LSz_joint": (-1.22173, 1.0472),
+    "RSz_joint": (-1.0472, 1.22173),
+    "LSy_joint": (0.0, 2.79253),
+    "RSy_joint": (-2.79253, 0.0),
+    "LWy_joint": (-1.22173, 1.5708),
+    "RWy_joint": (-1.5708, 1.22173),
+}
+
+# Frame rates a motion may have, Hz: below, it is no motion capture; above, the timesteps are not
+# seconds (or not a clock at all).
+RATE_RANGE = (1.0, 10_000.0)
+# Most frames a resampled motion may have: a run needs about 1.1 GB per 60 000 frames (issue 15),
+# so 10^6 frames would need some 18 GB.
+MAX_FRAMES = 1_000_000
+
 _MIRROR = np.diag([-1.0, 1.0, 1.0])  # reflection through the sagittal plane (x = right)
 
 
@@ -37,9 +67,9 @@ class ObjectMotion:
 
     Attributes:
         name: Object name as recorded.
-        position: (T, 3) origin position in the world, metres.
-        rotation: (T, 3, 3) orientation in the world.
-        markers: Marker name -> (T, 3) positions in metres.
+        position: (T, 3) origin position in the world, metres; NaN where the pose was not recorded.
+        rotation: (T, 3, 3) orientation in the world; NaN where the pose was not recorded.
+        markers: Marker name -> (T, 3) positions in metres; NaN where the marker was not seen.
     """
 
     name: str
@@ -61,9 +91,11 @@ class HumanMotion:
         root_rotation: (T, 3, 3) root orientation in the world.
         height: Subject height in metres (the MMM model is scaled to it).
         mass: Subject mass in kg, if recorded.
-        markers: Marker name -> (T, 3) positions in metres.
+        markers: Marker name -> (T, 3) positions in metres; NaN where the marker was not seen.
         objects: Object name -> :class:`ObjectMotion`.
         source: File the motion was read from, if any.
+        notes: One-line warnings about the recording found while reading it (each names the file,
+            the motion and sensor, the span and the problem); kept through crop and resample.
     """
 
     name: str
@@ -77,6 +109,7 @@ class HumanMotion:
     markers: Mapping[str, np.ndarray] = field(default_factory=dict)
     objects: Mapping[str, ObjectMotion] = field(default_factory=dict)
     source: Path | None = None
+    notes: tuple[str, ...] = ()
 
     @property
     def n_frames(self) -> int:
@@ -110,9 +143,26 @@ class HumanMotion:
 
     def resample(self, rate: float) -> HumanMotion:
         """Resample to ``rate`` Hz: cubic splines for angles and positions, rotation splines (C²) for
-        rotations."""
-        if rate <= 0:
-            raise SettingsError(f"{self.name}: resampling rate must be positive, got {rate}")
+        rotations. Markers and object poses are splined over each stretch they were seen in and stay
+        NaN in between.
+
+        Raises:
+            hlik.errors.SettingsError: ``rate`` is not a finite rate within :data:`RATE_RANGE`, or the
+                result would have more than :data:`MAX_FRAMES` frames.
+        """
+        where = self.source or self.name
+        low, high = RATE_RANGE
+        if not (math.isfinite(rate) and low <= rate <= high):
+            raise SettingsError(
+                f"{where}: resampling rate must be between {low:g} and {high:g} Hz, got {rate:g}"
+            )
+        n = math.floor(self.duration * rate + 1e-6) + 1
+        if n > MAX_FRAMES:
+            raise SettingsError(
+                f"{where}: resampling {self.times[0]:g}-{self.times[-1]:g} s ({self.duration:g} s) at "
+                f"{rate:g} Hz would make {n} frames, more than {MAX_FRAMES}; crop the motion or lower "
+                "the rate"
+            )
         t_new = self.times[0] + np.arange(0.0, self.duration + 1e-9, 1.0 / rate)
         return replace(
             self,
@@ -183,23 +233,57 @@ class HumanMotion:
 
 
 def _spline(t: np.ndarray, y: np.ndarray, t_new: np.ndarray) -> np.ndarray:
-    if len(t) < 4:  # a cubic needs 4 knots; fall back to linear on very short motions
-        return np.stack([np.interp(t_new, t, c) for c in y.reshape(len(t), -1).T], -1).reshape(
-            (len(t_new), *y.shape[1:])
-        )
-    return CubicSpline(t, y, axis=0)(t_new)
-
-
-def _slerp(t: np.ndarray, rot: np.ndarray, t_new: np.ndarray) -> np.ndarray:
-    return Slerp(t, Rotation.from_matrix(rot))(np.clip(t_new, t[0], t[-1])).as_matrix()
+    """Values (T_new, ...) at ``t_new`` of cubic splines through ``y`` (T, ...), one per stretch of
+    frames where ``y`` is finite; NaN outside those stretches (a spline across a gap would invent
+    values the recording does not have)."""
+    return _by_stretch(t, y, t_new, _cubic)
 
 
 def _rotation_spline(t: np.ndarray, rot: np.ndarray, t_new: np.ndarray) -> np.ndarray:
     """Rotations (T_new, 3, 3) at ``t_new`` on a C² spline through ``rot`` (T, 3, 3), like the cubic
     splines of the angles and positions. Slerp would kink the angular velocity at every recorded
     frame, and with the root's every hand target: a jerk spike each 10th frame at 100 Hz from
-    10 Hz data, which the tracking solvers reproduce and MJE scores."""
+    10 Hz data, which the tracking solvers reproduce and MJE scores. NaN between stretches, as
+    :func:`_spline`."""
+    return _by_stretch(t, rot, t_new, _rotations)
+
+
+def _cubic(t: np.ndarray, y: np.ndarray, t_new: np.ndarray) -> np.ndarray:
+    if len(t) < 4:  # a cubic needs 4 knots; fall back to linear on very short stretches
+        flat = y.reshape(len(t), -1)
+        return np.stack([np.interp(t_new, t, c) for c in flat.T], -1).reshape((len(t_new), *y.shape[1:]))
+    return CubicSpline(t, y, axis=0)(t_new)
+
+
+def _rotations(t: np.ndarray, rot: np.ndarray, t_new: np.ndarray) -> np.ndarray:
     return RotationSpline(t, Rotation.from_matrix(rot))(np.clip(t_new, t[0], t[-1])).as_matrix()
+
+
+def _by_stretch(
+    t: np.ndarray,
+    y: np.ndarray,
+    t_new: np.ndarray,
+    fit: Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray],
+) -> np.ndarray:
+    known = np.all(np.isfinite(y.reshape(len(t), -1)), axis=1)
+    if known.all():
+        return fit(t, y, t_new)
+    out = np.full((len(t_new), *y.shape[1:]), np.nan)
+    # stretches [a, b) of consecutive known frames
+    edges = np.diff(np.concatenate([[0], known.astype(np.int8), [0]]))
+    for a, b in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)):
+        inside = (t_new >= t[a]) & (t_new <= t[b - 1])
+        if not inside.any():
+            continue
+        if b - a == 1:
+            out[inside] = y[a]
+        else:
+            out[inside] = fit(t[a:b], y[a:b], t_new[inside])
+    return out
+
+
+def _slerp(t: np.ndarray, rot: np.ndarray, t_new: np.ndarray) -> np.ndarray:
+    return Slerp(t, Rotation.from_matrix(rot))(np.clip(t_new, t[0], t[-1])).as_matrix()
 
 
 def _swap_side(name: str) -> str:

@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-import sys
+import math
+import re
 from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
@@ -10,16 +11,15 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from hlik.errors import MotionFormatError, RobotError
+from hlik.errors import HlikError, MotionFormatError, RobotError
 from hlik.fk import site_poses
 from hlik.human.motion import HumanMotion
 from hlik.paths import robots_dir
 from hlik.robot.mapping import JointMapping
+from hlik.tomlfile import read_toml
 
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
+# A robot's name names its files (caches, recordings): no separators, no "..".
+NAME = re.compile(r"[A-Za-z0-9_-]+")
 
 SIDES = ("left", "right")
 VISUAL_GROUP, COLLISION_GROUP = 1, 3  # MJCF geom groups: what a viewer draws, what collides
@@ -150,45 +150,54 @@ def load_robot(name: str) -> Robot:
     """Load a bundled robot by name, or a robot toml by path.
 
     Raises:
-        hlik.errors.RobotError: unknown name, or a description inconsistent with its model.
+        hlik.errors.RobotError: unknown name, an unreadable or malformed description (naming the
+            file, the table and key), or one inconsistent with its model.
     """
-    path = Path(name) if name.endswith(".toml") else robots_dir() / f"{name}.toml"
-    if not path.is_file():
+    by_path = name.endswith(".toml")
+    path = Path(name) if by_path else robots_dir() / f"{name}.toml"
+    if not path.is_file() or not (by_path or NAME.fullmatch(name)):
+        if by_path and path.exists():
+            raise RobotError(f"{path}: is a folder, expected a robot .toml file")
         known = ", ".join(available_robots())
         raise RobotError(f"unknown robot {name!r}; choose one of: {known}")
     try:
-        desc = tomllib.loads(path.read_text(encoding="utf-8"))
-    except tomllib.TOMLDecodeError as e:
-        raise RobotError(f"{path}: invalid TOML: {e}") from None
+        desc = read_toml(path, "robot")
+    except HlikError as e:
+        raise RobotError(str(e)) from None
     return _build(path, desc)
 
 
 def _build(path: Path, desc: dict) -> Robot:
-    try:
-        mjcf = (path.parent / desc["mjcf"]).resolve()
-        arms = {s: tuple(desc["arms"][s]["joints"]) for s in SIDES}
-    except KeyError as e:
-        raise RobotError(f"{path}: missing key {e}") from None
+    name = _text(path, desc, "name", path.stem)
+    if not NAME.fullmatch(name):
+        raise RobotError(f"{path}: name {name!r} must be letters, digits, '_' or '-' (it names files)")
+    mjcf_name = _text(path, desc, "mjcf")
+    arms_table = _table(path, desc, "arms")
+    arms = {s: _names(path, _table(path, arms_table, s, f"arms.{s}"), "joints", f"arms.{s}") for s in SIDES}
+    mjcf = (path.parent / mjcf_name).resolve()
     try:
         model = mujoco.MjModel.from_xml_path(str(mjcf))
     except ValueError as e:
-        raise RobotError(f"{mjcf}: cannot load MJCF: {e}") from None
+        raise RobotError(f"{mjcf}: cannot load MJCF: {' '.join(str(e).split())}") from None
     names = tuple(model.joint(i).name for i in range(model.njnt))
     if model.nq != model.njnt or np.any(model.jnt_type != mujoco.mjtJoint.mjJNT_HINGE):
         raise RobotError(f"{mjcf}: robot joints must all be hinges")
-    extra = tuple(desc.get("extra_joints", ()))
+    extra = _names(path, desc, "extra_joints", "the top level", required=False)
     listed = [j for s in SIDES for j in arms[s]] + list(extra)
     unknown = [j for j in listed if j not in names]
     if unknown:
         raise RobotError(f"{path}: joints not in the model: {', '.join(unknown)}")
-    manip = desc.get("manipulability", {})
-    manip_site = str(manip.get("site", "tcp"))
-    manip_joints = tuple(manip.get("joints", ()))
+    twice = sorted({j for j in listed if listed.count(j) > 1})
+    if twice:
+        raise RobotError(f"{path}: joints listed twice in [arms] and extra_joints: {', '.join(twice)}")
+    manip = _table(path, desc, "manipulability", required=False)
+    manip_site = _text(path, manip, "site", "tcp", "[manipulability] ")
+    manip_joints = _names(path, manip, "joints", "[manipulability]", required=False)
     for side in SIDES:
         for site in SITES:
-            name = f"{side}_{manip_site if site == 'manipulability' else site}"
-            if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, name) < 0:
-                raise RobotError(f"{mjcf}: missing site {name}")
+            site_name = f"{side}_{manip_site if site == 'manipulability' else site}"
+            if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, site_name) < 0:
+                raise RobotError(f"{mjcf}: missing site {site_name}")
     arm_set = {j for s in SIDES for j in arms[s]}
     bad = [j for j in manip_joints if j not in names or j in arm_set]
     if bad:
@@ -196,16 +205,15 @@ def _build(path: Path, desc: dict) -> Robot:
     limited = model.jnt_limited.astype(bool)
     lower = np.where(limited, model.jnt_range[:, 0], -np.inf)
     upper = np.where(limited, model.jnt_range[:, 1], np.inf)
-    home_table = desc.get("home", {})
-    home = np.array([float(home_table.get(n, 0.0)) for n in names])
+    home = _home(path, desc, names, lower, upper)
     velocity, velocity_source = _velocity_limits(path, desc, names)
-    mapping = JointMapping.from_table(desc.get("mapping", {}))
+    mapping = _mapping(path, desc, names)
     missing = [j for s in SIDES for j in arms[s] if j not in {m.joint for m in mapping.joints}]
     if missing:
         raise RobotError(f"{path}: no mapping for arm joint(s): {', '.join(missing)}")
     return Robot(
-        name=desc.get("name", path.stem),
-        title=desc.get("title", path.stem),
+        name=name,
+        title=_text(path, desc, "title", path.stem),
         mjcf=mjcf,
         model=model,
         joint_names=names,
@@ -223,6 +231,94 @@ def _build(path: Path, desc: dict) -> Robot:
     )
 
 
+def _table(path: Path, desc: dict, key: str, where: str | None = None, required: bool = True) -> dict:
+    """The table ``desc[key]`` (``[where]`` in messages); empty if absent and not ``required``."""
+    if key not in desc:
+        if required:
+            raise RobotError(f"{path}: missing table [{where or key}]")
+        return {}
+    table = desc[key]
+    if not isinstance(table, dict):
+        raise RobotError(f"{path}: [{where or key}] must be a table, got {table!r}")
+    return table
+
+
+def _text(path: Path, desc: dict, key: str, default: str | None = None, where: str = "") -> str:
+    value = desc.get(key, default)
+    if value is None:
+        raise RobotError(f"{path}: missing key {where}{key!r}")
+    if not isinstance(value, str):
+        raise RobotError(f"{path}: {where}{key} must be text, got {value!r}")
+    return value
+
+
+def _names(path: Path, desc: dict, key: str, where: str, required: bool = True) -> tuple[str, ...]:
+    """A list of joint names ``desc[key]``."""
+    if key not in desc and not required:
+        return ()
+    value = desc.get(key)
+    if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
+        raise RobotError(f"{path}: {where} {key} must be a list of joint names, got {value!r}")
+    return tuple(value)
+
+
+def _number(path: Path, value: object, where: str) -> float:
+    """A finite number from the description."""
+    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+        raise RobotError(f"{path}: {where} must be a finite number, got {value!r}")
+    return float(value)
+
+
+def _home(path: Path, desc: dict, names: tuple[str, ...], lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
+    """(n,) home configuration from ``[home]`` (joints not listed at 0), within the joint limits."""
+    table = _table(path, desc, "home", required=False)
+    unknown = [j for j in table if j not in names]
+    if unknown:
+        raise RobotError(f"{path}: [home] names joints not in the model: {', '.join(unknown)}")
+    home = np.array([_number(path, table.get(n, 0.0), f"[home] {n}") for n in names])
+    outside = [n for n, v, lo, hi in zip(names, home, lower, upper) if not lo <= v <= hi]
+    if outside:
+        k = names.index(outside[0])
+        raise RobotError(
+            f"{path}: [home] {outside[0]} = {home[k]:g} rad is outside its limits "
+            f"[{lower[k]:g}, {upper[k]:g}]"
+        )
+    return home
+
+
+def _mapping(path: Path, desc: dict, names: tuple[str, ...]) -> JointMapping:
+    """The ``[mapping.left]``/``[mapping.right]`` tables, checked entry by entry."""
+    table = _table(path, desc, "mapping", required=False)
+    for side in table:
+        if side not in SIDES:
+            raise RobotError(f"{path}: unknown table [mapping.{side}]; choose from: {', '.join(SIDES)}")
+    for side in SIDES:
+        for joint, entry in _table(path, table, side, f"mapping.{side}", required=False).items():
+            where = f"[mapping.{side}] {joint}"
+            if joint not in names:
+                raise RobotError(f"{path}: {where}: not a joint of the model")
+            if not isinstance(entry, dict):
+                raise RobotError(f"{path}: {where} must be a table {{ mmm = ..., a = ..., b = ... }}")
+            extra = sorted(set(entry) - {"mmm", "a", "b", "offset"})
+            if extra:
+                raise RobotError(f"{path}: {where}: unknown key {extra[0]!r}; choose from: mmm, a, b, offset")
+            if "mmm" in entry and not isinstance(entry["mmm"], str):
+                raise RobotError(f"{path}: {where} mmm must be an MMM joint name, got {entry['mmm']!r}")
+            for key in ("a", "b"):
+                _number(path, entry.get(key, 0.0), f"{where} {key}")
+            offset = entry.get("offset")
+            if offset is None:
+                continue
+            if not isinstance(offset, dict) or not isinstance(offset.get("mmm"), str):
+                raise RobotError(f"{path}: {where} offset must be a table {{ mmm = ..., gain = ... }}")
+            _number(path, offset.get("gain"), f"{where} offset gain")
+            if "fold" in offset:
+                fold = offset["fold"]
+                if isinstance(fold, bool) or not isinstance(fold, int | float) or math.isnan(fold):
+                    raise RobotError(f"{path}: {where} offset fold must be a number, got {fold!r}")
+    return JointMapping.from_table(table)
+
+
 def _placement_rule(path: Path, desc: dict) -> str:
     rule = str(desc.get("placement", "reach"))
     if rule not in PLACEMENT_RULES:
@@ -232,7 +328,7 @@ def _placement_rule(path: Path, desc: dict) -> str:
 
 def _velocity_limits(path: Path, desc: dict, names: tuple[str, ...]) -> tuple[np.ndarray, str]:
     """(n,) joint speed limits in rad/s from ``[velocity_limits]`` (every joint, positive, finite)."""
-    table = dict(desc.get("velocity_limits", {}))
+    table = dict(_table(path, desc, "velocity_limits"))
     source = str(table.pop("source", ""))
     missing = [n for n in names if n not in table]
     if missing:
@@ -240,10 +336,11 @@ def _velocity_limits(path: Path, desc: dict, names: tuple[str, ...]) -> tuple[np
     unknown = [n for n in table if n not in names]
     if unknown:
         raise RobotError(f"{path}: [velocity_limits] names joints not in the model: {', '.join(unknown)}")
-    try:
-        limits = np.array([float(table[n]) for n in names])
-    except (TypeError, ValueError):
-        raise RobotError(f"{path}: [velocity_limits] values must be numbers in rad/s") from None
+    bad_type = [n for n in names if isinstance(table[n], bool) or not isinstance(table[n], int | float)]
+    if bad_type:
+        n = bad_type[0]
+        raise RobotError(f"{path}: [velocity_limits] values must be numbers in rad/s, {n} is {table[n]!r}")
+    limits = np.array([float(table[n]) for n in names])
     if not np.all(np.isfinite(limits) & (limits > 0)):
         bad = [n for n, v in zip(names, limits) if not (np.isfinite(v) and v > 0)]
         raise RobotError(f"{path}: [velocity_limits] must be positive and finite: {', '.join(bad)}")

@@ -11,29 +11,33 @@ cells). The counting window makes the map dense enough at a few hundred thousand
 no pose of a tracked motion unreachable, and its count grows towards the middle of the workspace,
 away from joint limits and the body, which is where the placement search pushes the hands. Maps are
 sampled once per model (seconds) and cached on disk.
+
+Cache entries (these maps, and :mod:`hlik.criteria.learned`'s pieces) are trusted only as far as
+they prove themselves: each carries its key (format, robot, a hash of the model, what it was made
+from) and a checksum of its arrays. An entry that is unreadable, edited, or written for another key
+is made again, with a one-line note on the result (``notes``) that the CLI prints.
 """
 
 from __future__ import annotations
 
 import hashlib
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import cached_property
-from pathlib import Path
 
 import mujoco
 import numpy as np
 from scipy.ndimage import uniform_filter
 
-from hlik.atomic import atomic_path
+from hlik.cache import UNREADABLE, entry_path, one_line, read_entry, write_entry
 from hlik.fk import site_poses
-from hlik.paths import cache_dir, robots_dir
 from hlik.robot.model import SIDES, SITES, Robot
 
-CACHE_VERSION = "reach/2"  # 2: hands in front of the shoulders only
+CACHE_VERSION = "reach/3"  # 2: hands in front of the shoulders only; 3: entries carry key and checksum
 CELL = 0.08  # m, position cell
 AZIMUTH_BINS, POLAR_BINS, ROLL_BINS = 6, 4, 6  # 60 deg x (cos steps of 0.5) x 60 deg
 N_SAMPLES = 400_000
 UNLIMITED_RANGE = np.pi  # an unlimited joint is sampled in [-pi, pi]
+SEED = 0
 
 
 @dataclass(frozen=True, eq=False)
@@ -47,6 +51,8 @@ class ReachabilityMap:
         counts: (2, nx, ny, nz, n_orientation) uint16 samples within one cell and bin of each
             entry, arms in :data:`SIDES` order.
         n_samples: Configurations sampled (before removing self-collisions).
+        notes: One line per thing worth telling about where the map came from (a cache entry that
+            was unreadable or did not match and was sampled again, or could not be written).
     """
 
     robot: str
@@ -54,6 +60,7 @@ class ReachabilityMap:
     cell: float
     counts: np.ndarray
     n_samples: int
+    notes: tuple[str, ...] = ()
 
     def lookup(self, side: int, pos: np.ndarray, rot: np.ndarray) -> np.ndarray:
         """Map entries of TCP poses of arm ``side`` (0 = left): positions (..., 3) and rotations
@@ -88,25 +95,40 @@ def _bin(u: np.ndarray, n: int) -> np.ndarray:
 
 def reachability_map(robot: Robot, cache: bool = True, n_samples: int = N_SAMPLES) -> ReachabilityMap:
     """The robot's reachability map, from the cache (keyed by model, description and sampling) or
-    sampled now (a few seconds; seeded, so the same model gives the same map)."""
-    path = cache_dir() / f"reach-{robot.name}-{_key(robot, n_samples)}.npz"
-    if cache and path.is_file():
-        try:
-            return _load(path)
-        except (OSError, KeyError, ValueError):
-            pass  # a broken cache entry is sampled again
+    sampled now (a few seconds; seeded, so the same model gives the same map). A cache entry that is
+    unreadable or does not match is sampled again; ``notes`` says so."""
+    key = {
+        "format": CACHE_VERSION,
+        "robot": robot.name,
+        "model": model_key(robot),
+        "sampling": f"{n_samples} samples, seed {SEED}, cell {CELL} m",
+    }
+    path = entry_path(f"reach-{robot.name}", key)
+    notes = []
+    if cache:
+        arrays, problem = read_entry(path, key)
+        if arrays is not None:
+            try:
+                return ReachabilityMap(
+                    str(arrays["robot"]), arrays["origin"], float(arrays["cell"]), arrays["counts"],
+                    int(arrays["n_samples"]),
+                )  # fmt: skip
+            except UNREADABLE as e:  # whole and of this key, yet not a map: a bug, not a user's file
+                problem = f"does not hold a reachability map ({one_line(e)})"
+        if problem is not None:
+            notes.append(f"{path}: cache entry {problem}; sampled the map again")
     reach = sample_map(robot, n_samples)
     if cache:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        with atomic_path(path) as tmp, open(tmp, "wb") as f:
-            np.savez_compressed(
-                f, robot=np.array(reach.robot), origin=reach.origin, cell=np.array(reach.cell),
-                counts=reach.counts, n_samples=np.array(reach.n_samples),
-            )  # fmt: skip
-    return reach
+        arrays = {
+            "robot": np.array(reach.robot), "origin": reach.origin, "cell": np.array(reach.cell),
+            "counts": reach.counts, "n_samples": np.array(reach.n_samples),
+        }  # fmt: skip
+        failed = write_entry(path, arrays, key, compressed=True)
+        notes += [failed] if failed else []
+    return replace(reach, notes=tuple(notes))
 
 
-def sample_map(robot: Robot, n_samples: int, seed: int = 0) -> ReachabilityMap:
+def sample_map(robot: Robot, n_samples: int, seed: int = SEED) -> ReachabilityMap:
     """Sample ``n_samples`` configurations uniformly within the limits of the arm and extra joints
     (the rest at home), drop self-colliding ones, and count both TCPs into the 6D grid."""
     model = robot.model
@@ -146,15 +168,19 @@ def sample_map(robot: Robot, n_samples: int, seed: int = 0) -> ReachabilityMap:
     return ReachabilityMap(robot.name, origin, CELL, counts, n_samples)
 
 
-def _key(robot: Robot, n_samples: int) -> str:
-    digest = hashlib.sha256(f"{CACHE_VERSION}:{n_samples}:{CELL}".encode())
-    for path in (robots_dir() / f"{robot.name}.toml", robot.mjcf):
-        digest.update(Path(path).read_bytes())
-    return digest.hexdigest()[:16]
+# --- cache entries -----------------------------------------------------------------------------
 
 
-def _load(path: Path) -> ReachabilityMap:
-    with np.load(path, allow_pickle=False) as z:
-        return ReachabilityMap(
-            str(z["robot"]), z["origin"], float(z["cell"]), z["counts"], int(z["n_samples"])
-        )
+def model_key(robot: Robot) -> str:
+    """Hex digest of what a robot's cached pieces depend on: its compiled MuJoCo model (included
+    files and meshes too) and its description (joints, limits, home, mapping, manipulability chain)."""
+    mjb = np.empty(mujoco.mj_sizeModel(robot.model), dtype=np.uint8)
+    mujoco.mj_saveModel(robot.model, None, mjb)
+    digest = hashlib.sha256(mjb.tobytes())
+    described = (
+        robot.joint_names, robot.arm_joints, robot.extra_joints, robot.lower.tolist(),
+        robot.upper.tolist(), robot.home.tolist(), robot.mapping, robot.manipulability_site,
+        robot.manipulability_joints,
+    )  # fmt: skip
+    digest.update(repr(described).encode())
+    return digest.hexdigest()

@@ -3,13 +3,16 @@ diagnostics out. Every solver (JM, JV, QP, SLSQP, a mink stack) is a :class:`Sol
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+import math
+import numbers
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Any, Protocol
 
 import numpy as np
 
+from hlik.errors import SettingsError
 from hlik.problem.problem import Problem
 
 
@@ -89,3 +92,65 @@ class ConfiguredSolver:
 
     def __call__(self, problem: Problem) -> SolverResult:
         return self.solve(problem, self.settings, self.learned, self.progress)
+
+
+def check_settings(
+    settings: object,
+    *,
+    at_least_zero: Sequence[str] = (),
+    positive: Sequence[str] = (),
+    at_most_zero: Sequence[str] = (),
+    fractions: Sequence[str] = (),
+    counts: Sequence[str] = (),
+) -> None:
+    """Check a solver's settings dataclass in its ``__post_init__``, so that the Python API refuses
+    what a stack file would: every listed field a finite number ``>= 0`` (``at_least_zero``),
+    ``> 0`` (``positive``), ``<= 0`` (``at_most_zero``), in (0, 1] (``fractions``) or a whole
+    number ``>= 1`` (``counts``); the ``scenario``, the ``gamma`` table (criterion -> finite number
+    ``>= 0``) and, where present, ``collision_detect > collision_margin``.
+
+    Raises:
+        SettingsError: ``"<Class>.<field> must be ..., got <value>"`` for the first bad field
+            (:mod:`hlik.solvers.stack_file` turns it into ``"<file>: [<solver>] <field> ..."``).
+    """
+    owner = type(settings).__name__
+
+    def fail(key: str, rule: str) -> None:
+        value = getattr(settings, key)
+        shown = str(value) if _is_real(value) else repr(value)
+        raise SettingsError(f"{owner}.{key} must be {rule}, got {shown}")
+
+    rules = (
+        (at_least_zero, "a finite number >= 0", lambda v: v >= 0),
+        (positive, "a finite number > 0", lambda v: v > 0),
+        (at_most_zero, "a finite number <= 0", lambda v: v <= 0),
+        (fractions, "a number in (0, 1]", lambda v: 0 < v <= 1),
+    )
+    for keys, rule, holds in rules:
+        for key in keys:
+            value = getattr(settings, key)
+            if not (_is_real(value) and math.isfinite(value) and holds(value)):
+                fail(key, rule)
+    for key in counts:
+        value = getattr(settings, key)
+        if not (isinstance(value, numbers.Integral) and not isinstance(value, bool) and int(value) >= 1):
+            fail(key, "a whole number >= 1")
+    scenario = getattr(settings, "scenario", "pose")
+    if scenario not in ("pose", "relative"):
+        raise SettingsError(f"{owner}.scenario must be 'pose' or 'relative', got {scenario!r}")
+    gamma = getattr(settings, "gamma", {})
+    if not isinstance(gamma, Mapping):
+        raise SettingsError(f"{owner}.gamma must be a mapping of criterion name -> number, got {gamma!r}")
+    for name, value in gamma.items():
+        if not (_is_real(value) and math.isfinite(value) and value >= 0):
+            shown = str(value) if _is_real(value) else repr(value)
+            raise SettingsError(f"{owner}.gamma {name} must be a finite number >= 0, got {shown}")
+    margin, detect = getattr(settings, "collision_margin", 0.0), getattr(settings, "collision_detect", 1.0)
+    if detect <= margin:  # both checked above: the damper acts between the two distances
+        raise SettingsError(
+            f"{owner}.collision_detect must be larger than collision_margin ({margin}), got {detect}"
+        )
+
+
+def _is_real(value: object) -> bool:
+    return isinstance(value, numbers.Real) and not isinstance(value, bool)

@@ -38,7 +38,7 @@ from hlik.problem.problem import Problem
 from hlik.robot.collision import CollisionPairs, DistanceBounds, collision_pairs
 from hlik.robot.model import Robot
 from hlik.robot.state import RobotState, robot_state
-from hlik.solvers.base import ConfiguredSolver, SolverResult
+from hlik.solvers.base import ConfiguredSolver, SolverResult, check_settings
 from hlik.solvers.frames import FrameResult, JointBox, collision_rows, iterate, track
 from hlik.solvers.qp import solve_qp
 
@@ -96,6 +96,16 @@ class JVSettings:
     collision_margin: float = 0.01
     collision_detect: float = 0.10
     collision_gain: float = 0.5
+
+    def __post_init__(self):
+        check_settings(
+            self,
+            at_least_zero=("weight", "jla_gamma", "damping", "orientation_weight", "collision_margin"),
+            positive=("step", "max_null", "max_step", "tol", "collision_detect"),
+            at_most_zero=("k",),  # k > 0 would climb the null-space cost
+            fractions=("rcond", "collision_gain"),
+            counts=("max_iter",),
+        )
 
 
 @dataclass(frozen=True, eq=False)

@@ -24,11 +24,12 @@ from hlik.criteria.base import Sample, Term
 from hlik.criteria.functional import target_terms
 from hlik.criteria.learned import Learned, learn
 from hlik.criteria.smoothness import smoothness_terms
+from hlik.errors import SettingsError
 from hlik.problem.problem import Problem
 from hlik.robot.collision import CollisionPairs, DistanceBounds, collision_pairs
 from hlik.robot.model import Robot
 from hlik.robot.state import robot_state
-from hlik.solvers.base import ConfiguredSolver, SolverResult
+from hlik.solvers.base import ConfiguredSolver, SolverResult, check_settings
 from hlik.solvers.frames import FrameResult, JointBox, collision_rows, iterate, track
 
 # HJA_r's Table II gamma (2) doubled for the QP: beside SYN (gamma 6) it barely acted, and SYN +
@@ -84,6 +85,36 @@ class QPSettings:
     collision_margin: float = 0.01
     collision_detect: float = 0.10
     collision_gain: float = 0.5
+
+    def __post_init__(self):
+        check_settings(
+            self,
+            at_least_zero=(
+                "position_cost",
+                "orientation_cost",
+                "relative_position_cost",
+                "relative_orientation_cost",
+                "criterion_cost",
+                "velocity",
+                "acceleration",
+                "jerk",
+                "damping",
+                "collision_margin",
+            ),
+            positive=("tol", "max_step", "collision_detect"),
+            fractions=("collision_gain",),
+            counts=("max_iter",),
+        )
+        if self.solver not in qp_backends():
+            raise SettingsError(
+                f"QPSettings.solver {self.solver!r} is not an installed QP solver; "
+                f"choose one of: {', '.join(qp_backends())}"
+            )
+
+
+def qp_backends() -> tuple[str, ...]:
+    """QP solvers :func:`solve_qp` can use: daqp (called directly) and qpsolvers' installed ones."""
+    return tuple(dict.fromkeys(("daqp", *qpsolvers.available_solvers)))
 
 
 def build_terms(

@@ -10,13 +10,14 @@ added criterion weighs ``gamma_i * criterion weight / len(criteria)``, as in the
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import MappingProxyType
 
 from hlik.criteria import registry
-from hlik.errors import HlikError
+from hlik.errors import SettingsError
 from hlik.paths import tasks_dir
 from hlik.tomlfile import read_toml
 
@@ -70,7 +71,7 @@ def settings_class(solver: str) -> type:
         from hlik.solvers.slsqp import SLSQPSettings
 
         return SLSQPSettings
-    raise HlikError(f"solver {solver!r} has no settings; choose one of: {', '.join(SOLVER_TABLES)}")
+    raise SettingsError(f"solver {solver!r} has no settings; choose one of: {', '.join(SOLVER_TABLES)}")
 
 
 def bundled_stacks() -> tuple[str, ...]:
@@ -82,7 +83,7 @@ def load_stack(path: str | Path) -> Stack:
     """Read a stack file, or a bundled stack by name (``ee_pose``, ``relative_pose``).
 
     Raises:
-        HlikError: naming the file and the problem (missing, bad TOML, unknown key, bad value).
+        SettingsError: naming the file and the problem (missing, bad TOML, unknown key, bad value).
     """
     path = Path(path)
     if not path.exists() and path.suffix == "" and (tasks_dir() / f"{path}.toml").exists():
@@ -96,17 +97,17 @@ def _parse(raw: dict, path: Path) -> Stack:
     _check_keys(raw, allowed, path, "the top level")
     scenario = raw.get("scenario", "pose")
     if scenario not in SCENARIOS:
-        raise HlikError(f"{path}: unknown scenario {scenario!r}; choose one of: {', '.join(SCENARIOS)}")
+        raise SettingsError(f"{path}: unknown scenario {scenario!r}; choose one of: {', '.join(SCENARIOS)}")
     criteria = raw.get("criteria", [])
     if not isinstance(criteria, list) or not all(isinstance(c, str) for c in criteria):
-        raise HlikError(f'{path}: criteria must be a list of names, e.g. ["SYN", "HJA_r"]')
+        raise SettingsError(f'{path}: criteria must be a list of names, e.g. ["SYN", "HJA_r"]')
     _check_criteria(tuple(criteria), path)
     gamma = _gamma(raw.get("gamma", {}), path, "gamma")
     solvers = {}
     for solver in (s for s in SOLVER_TABLES if s in raw):
         table = raw[solver]
         if not isinstance(table, dict):
-            raise HlikError(f"{path}: [{solver}] must be a table")
+            raise SettingsError(f"{path}: [{solver}] must be a table")
         fields = {f.name: f for f in dataclasses.fields(settings_class(solver))}
         _check_keys(table, set(fields) - {"criteria", "scenario"}, path, f"[{solver}]")
         solvers[solver] = MappingProxyType(
@@ -117,53 +118,72 @@ def _parse(raw: dict, path: Path) -> Stack:
                 for k, v in table.items()
             }
         )
-    return Stack(
-        name=str(raw.get("name", path.stem)),
+    name = raw.get("name", path.stem)
+    if not isinstance(name, str) or not name.strip():
+        raise SettingsError(f"{path}: name must be text, got {name!r}")
+    stack = Stack(
+        name=name,
         scenario=scenario,
         criteria=tuple(criteria),
         gamma=gamma,
         solvers=MappingProxyType(solvers),
     )
+    for solver in SOLVER_TABLES:  # refuse bad values now, naming the file, not when a solver starts
+        try:
+            stack.settings(solver)
+        except SettingsError as e:
+            owner = f"{settings_class(solver).__name__}."
+            raise SettingsError(f"{path}: [{solver}] {str(e).removeprefix(owner)}") from None
+    return stack
 
 
 def _gamma(table: object, path: Path, where: str) -> Mapping[str, float]:
     """A ``[gamma]`` table (criterion name -> number), checked."""
     if not isinstance(table, dict):
-        raise HlikError(f"{path}: [{where}] must be a table of criterion = number")
+        raise SettingsError(f"{path}: [{where}] must be a table of criterion = number")
     for name in table:
         _check_criteria((name,), path)
-    return MappingProxyType({name: _number(v, path, f"{where}.{name}") for name, v in table.items()})
+    values = {name: _number(v, path, f"{where}.{name}") for name, v in table.items()}
+    for name, v in values.items():
+        if not (math.isfinite(v) and v >= 0):
+            raise SettingsError(f"{path}: [{where}] {name} must be a finite number >= 0, got {v}")
+    return MappingProxyType(values)
 
 
 def _check_keys(table: dict, allowed: set[str], path: Path, where: str) -> None:
     unknown = sorted(set(table) - allowed)
     if unknown:
-        raise HlikError(
+        raise SettingsError(
             f"{path}: unknown key {unknown[0]!r} in {where}; choose from: {', '.join(sorted(allowed))}"
         )
 
 
 def _check_criteria(criteria: tuple[str, ...], where: object) -> None:
+    twice = sorted({c for c in criteria if criteria.count(c) > 1})
+    if twice:
+        raise SettingsError(f"{where}: criterion {', '.join(twice)} listed twice")
     known = registry.human_likeness()
     unknown = [c for c in criteria if c not in known]
     if unknown:
-        raise HlikError(f"{where}: unknown criteria {', '.join(unknown)}; choose from: {', '.join(known)}")
+        raise SettingsError(
+            f"{where}: unknown criteria {', '.join(unknown)}; choose from: {', '.join(known)}"
+        )
 
 
 def _value(value: object, default: object, path: Path, key: str) -> object:
     """A setting of the default's kind: text, true/false, or a number."""
     if isinstance(default, bool):
         if not isinstance(value, bool):
-            raise HlikError(f"{path}: {key} must be true or false, got {value!r}")
+            raise SettingsError(f"{path}: {key} must be true or false, got {value!r}")
         return value
     if isinstance(default, str):
         if not isinstance(value, str):
-            raise HlikError(f"{path}: {key} must be text, got {value!r}")
+            raise SettingsError(f"{path}: {key} must be text, got {value!r}")
         return value
     return _number(value, path, key)
 
 
 def _number(value: object, path: Path, key: str) -> float | int:
     if isinstance(value, bool) or not isinstance(value, int | float):
-        raise HlikError(f"{path}: {key} must be a number, got {value!r}")
+        raise SettingsError(f"{path}: {key} must be a number, got {value!r}")
     return value
