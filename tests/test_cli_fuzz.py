@@ -172,3 +172,41 @@ def test_a_truncated_take_is_refused(tmp_path, take, fraction):
     path.write_bytes(take[: int(fraction * len(take))])
     out.mkdir()
     _check_refused(path, out, ())
+
+
+@pytest.mark.parametrize("value", [1e300, 5.0, -50.0])
+def test_evaluate_refuses_joint_values_no_solver_gives(tmp_path, value):
+    """A limited joint beyond its limits (or any absurd angle) is not a solved trajectory."""
+    import numpy as np
+
+    out = tmp_path / "a.rrd"
+    assert _invoke(["run", "--solver", "jm", "--out", str(out)]).exit_code == 0
+    with np.load(out.with_suffix(".npz")) as z:
+        arrays = {k: z[k] for k in z.files}
+    arrays["q"] = arrays["q"].copy()
+    arrays["q"][3, 0] = value
+    bad = tmp_path / "bad.npz"
+    np.savez(bad, **arrays)
+    result = _invoke(["evaluate", str(bad)])
+    err = result.stderr.strip()
+    assert result.exit_code == 2 and len(err.splitlines()) == 1, result.output
+    assert err.startswith(f"error: {bad}: q: joint ") and "frame 3" in err and "limits" in err, err
+
+
+def test_a_failed_run_creates_no_output_folder(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert _invoke(["run", str(tmp_path / "missing.xml")]).exit_code == 2
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_ctrl_c_ends_in_one_line_and_exit_130(tmp_path, monkeypatch):
+    import hlik.human.load
+
+    def interrupt(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(hlik.human.load, "load_motion", interrupt)
+    result = _invoke(["run", "--out", str(tmp_path / "x.rrd")])
+    assert result.exit_code == 130, result.output
+    assert result.stderr.strip() == "error: interrupted; nothing written", result.stderr
+    assert list(tmp_path.iterdir()) == []

@@ -291,7 +291,7 @@ def test_a_reachability_entry_that_does_not_prove_itself_is_sampled_again(
     fresh, name, good, other = reach_entries
     monkeypatch.setenv("HLIK_CACHE", str(tmp_path))
     samplings = []  # sampled once in the fixture (seeded: the same map), counted here
-    monkeypatch.setattr(reach_module, "sample_map", lambda robot, n: samplings.append(n) or fresh)
+    monkeypatch.setattr(reach_module, "sample_map", lambda robot, n, **kw: samplings.append(n) or fresh)
     path = tmp_path / name
     path.write_bytes(good)
     corrupt, why = REACH_FAULTS[fault]

@@ -146,7 +146,7 @@ def test_rate_option_resamples(takes, tmp_path):
     assert _invoke(str(takes[0]), "--rate", "0", "--out", str(out)).exit_code == 0
     native = load_trajectory(out.with_suffix(".npz"))
     np.testing.assert_allclose(np.median(np.diff(native.times)), 0.1, rtol=1e-6)  # KIT takes are 10 Hz
-    assert _invoke(str(takes[0]), "--rate", "50", "--out", str(out)).exit_code == 0
+    assert _invoke(str(takes[0]), "--rate", "50", "--out", str(out), "--force").exit_code == 0
     np.testing.assert_allclose(np.diff(load_trajectory(out.with_suffix(".npz")).times), 0.02, atol=1e-9)
 
 

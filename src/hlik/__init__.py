@@ -4,14 +4,41 @@ Data flow: motion -> human kinematics -> placement and hand targets -> solver ->
 metrics -> recording.
 """
 
-from hlik.errors import HlikError, MotionFormatError, RobotError, TrajectoryFormatError
-from hlik.human.kinematics import HumanKinematics
-from hlik.human.load import load_motion
-from hlik.human.motion import HumanMotion, ObjectMotion
-from hlik.recording import write_recording
-from hlik.retarget import retarget
-from hlik.robot.model import Robot, available_robots, load_robot
-from hlik.trajectory import Trajectory, load_trajectory
+from __future__ import annotations
+
+import sys
+from importlib import import_module
+from types import ModuleType
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from hlik.errors import HlikError, MotionFormatError, RobotError, TrajectoryFormatError
+    from hlik.human.kinematics import HumanKinematics
+    from hlik.human.load import load_motion
+    from hlik.human.motion import HumanMotion, ObjectMotion
+    from hlik.recording import write_recording
+    from hlik.retarget import retarget
+    from hlik.robot.model import Robot, available_robots, load_robot
+    from hlik.trajectory import Trajectory, load_trajectory
+
+# Imported on first use (PEP 562): `import hlik.cli` must not pay for rerun, mink, scipy, MuJoCo.
+_WHERE = {
+    "HlikError": "hlik.errors",
+    "MotionFormatError": "hlik.errors",
+    "RobotError": "hlik.errors",
+    "TrajectoryFormatError": "hlik.errors",
+    "HumanKinematics": "hlik.human.kinematics",
+    "load_motion": "hlik.human.load",
+    "HumanMotion": "hlik.human.motion",
+    "ObjectMotion": "hlik.human.motion",
+    "write_recording": "hlik.recording",
+    "retarget": "hlik.retarget",
+    "Robot": "hlik.robot.model",
+    "available_robots": "hlik.robot.model",
+    "load_robot": "hlik.robot.model",
+    "Trajectory": "hlik.trajectory",
+    "load_trajectory": "hlik.trajectory",
+}
 
 __all__ = [
     "HlikError",
@@ -31,3 +58,27 @@ __all__ = [
     "write_recording",
 ]
 __version__ = "0.1.0"
+
+
+class _Package(ModuleType):
+    # Importing the submodule hlik.retarget sets the package attribute `retarget` to that module
+    # (after its code ran), which would hide the function of the same name: keep the function.
+    def __setattr__(self, name: str, value: Any) -> None:
+        if name in _WHERE and isinstance(value, ModuleType) and value.__name__ == _WHERE[name]:
+            value = getattr(value, name)
+        super().__setattr__(name, value)
+
+
+sys.modules[__name__].__class__ = _Package
+
+
+def __getattr__(name: str) -> Any:
+    if name not in _WHERE:
+        raise AttributeError(f"module 'hlik' has no attribute {name!r}")
+    value = getattr(import_module(_WHERE[name]), name)
+    globals()[name] = value  # once imported, a plain attribute
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted([*globals(), *_WHERE])

@@ -5,9 +5,10 @@ from __future__ import annotations
 import math
 import os
 import re
+import shlex
 import sys
 import time
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import replace
 from pathlib import Path
@@ -22,13 +23,16 @@ from typer.core import TyperGroup
 
 from hlik.atomic import raising_on_sigterm
 from hlik.errors import HlikError
-from hlik.paths import demo_motion_path
-from hlik.robot.mapping import JointMap
+from hlik.paths import corpus_setting, demo_motion_path
 
 if TYPE_CHECKING:  # imported where used: `hlik --help` stays quick
+    from hlik.human.motion import HumanMotion
+    from hlik.metrics import Evaluation
+    from hlik.robot.mapping import JointMap
     from hlik.robot.model import Robot
     from hlik.trajectory import Trajectory
 
+_FLAG = ""  # metavar of an on/off option: typer would show it as `--json <bool>`, taking a value
 RATE_RANGE = (1.0, 10000.0)  # Hz a motion may be resampled to (0 keeps its own)
 
 
@@ -43,6 +47,9 @@ def _print_error(message: str) -> None:
     """``error: <message>`` on one line of stderr; the message is text, never markup ("[qp]")."""
     text = Text.assemble(("error:", "red"), " ", " ".join(message.split()))
     Console(stderr=True, soft_wrap=True, highlight=False).print(text)
+
+
+INTERRUPTED = 130  # exit code of a command ended by Ctrl-C (128 + SIGINT)
 
 
 class _OneLineErrors(TyperGroup):
@@ -72,6 +79,8 @@ class _OneLineErrors(TyperGroup):
         except typer.Abort:  # end of input at a prompt
             _print_error("aborted")
             result = 1
+        if result == INTERRUPTED:  # typer turns Ctrl-C into this exit code, silently
+            _print_error("interrupted; nothing written")
         if not standalone_mode:
             return result
         sys.exit(result if isinstance(result, int) else 0)
@@ -94,7 +103,9 @@ MotionArg = Annotated[
 CorpusOpt = Annotated[
     Path | None,
     typer.Option(
-        help="Folder of MMM motions to learn synergies and the swivel regressor from (default: demo)."
+        help="Folder of MMM motions to learn synergies and the swivel regressor from (default: "
+        '$HLIK_CORPUS, else corpus = "DIR" in ./hlik.toml, else the bundled demo).',
+        show_default=False,
     ),
 ]
 ScenarioOpt = Annotated[
@@ -136,8 +147,23 @@ def run(
     ] = "jm",
     out: Annotated[
         Path | None,
-        typer.Option("--out", "-o", help="Output .rrd (default: recordings/<motion>_<robot>_<solver>.rrd)."),
+        typer.Option(
+            "--out",
+            "-o",
+            help="Output .rrd (default: recordings/<motion>_<robot>_<solver>[_<what else differs>].rrd).",
+            show_default=False,
+        ),
     ] = None,
+    force: Annotated[
+        bool,
+        typer.Option(
+            "--force",
+            "-f",
+            help="Replace an existing output (.rrd, .npz).",
+            metavar=_FLAG,
+            show_default=False,
+        ),
+    ] = False,
     rate: Annotated[float, typer.Option(help="Resample the motion to this rate (Hz); 0 keeps it.")] = 100.0,
     layout: Annotated[
         str, typer.Option(help="side: robot beside the human; overlay: on the human.")
@@ -218,12 +244,25 @@ def run(
         _check_placement(placement)
         r = load_robot(robot)
         unified_metric = load_metric(metric) if metric is not None else None
-        named = () if task_stack.name == "ee_pose" else (task_stack.name,)
-        tag = "_".join((solver, *named, *chosen))
+        corpus, corpus_source = (corpus, "--corpus") if corpus is not None else corpus_setting()
+        bundled = not Path(stack).exists() and (tasks_dir() / f"{stack}.toml").is_file()
+        tag = _run_tag(
+            solver=solver,
+            stack=task_stack.name if bundled else _stack_label(Path(stack).stem, task_stack.name),
+            default_stack=bundled and task_stack.name == "ee_pose",
+            criteria=chosen,
+            gradients=gradients,
+            placement=placement if placement not in (None, r.placement) else None,
+            scenario=scenario if scenario != task_stack.scenario else None,
+            metric=metric,
+            rate=rate,
+            layout=layout,
+            corpus=corpus,
+        )
         rrd = out or Path("recordings") / f"{_file_stem(path.stem, r.name, tag)}.rrd"
         npz = rrd.with_suffix(".npz")
         inputs = [path, metric, robot, stack, tasks_dir() / f"{stack}.toml"]
-        _check_outputs(rrd, npz, inputs, create=out is None)
+        _check_outputs(rrd, npz, inputs, create=out is None, force=force)
         columns = (
             SpinnerColumn(),
             TextColumn("{task.description}", markup=False),
@@ -231,15 +270,23 @@ def run(
             MofNCompleteColumn(),
             TimeElapsedColumn(),
         )
-        with Progress(*columns, console=Console(stderr=True), transient=True) as progress:
+        with Progress(
+            *columns, console=Console(stderr=True), transient=True, disable=not sys.stderr.isatty()
+        ) as progress:
             task = progress.add_task(f"reading {path.name}", total=None)
             m = load_motion(path, rate=rate or None)
-            learned = learn(r, corpus)
+
+            def counting(description: str):  # a (k, n) callback: a bar for one stage
+                progress.update(task, description=description, total=None, completed=0)
+                return lambda k, n: progress.update(task, completed=k, total=n)
+
+            learned = learn(r, corpus, progress=counting(f"learning {r.title}'s criteria from the corpus"))
             placement = placement or r.placement
             notes = [*m.notes, *learned.notes]
             if placement in ("reach", "optimize"):  # sampled or read once; placement reads the cache
-                notes += reachability_map(r).notes
-            progress.update(task, description=f"placing {r.title} ({placement})")
+                sampling = counting(f"reachability map of {r.title}")
+                notes += reachability_map(r, progress=sampling).notes
+            progress.update(task, description=f"placing {r.title} ({placement})", total=None)
             tried: list = []
             if placement == "optimize":
                 fast = get_solver("qp", task_stack.settings("qp"), learned)
@@ -257,20 +304,114 @@ def run(
             traj = retarget(m, r, get_solver(solver, settings, learned, step), where)
             progress.update(task, completed=m.n_frames)
             solve_time = time.perf_counter() - start
-            progress.update(task, description="evaluating the criteria")
+            progress.update(task, description="evaluating the criteria", total=None)
             ev = evaluate_trajectory(traj, r, learned, scenario=scenario, metric=unified_metric)
             progress.update(task, description=f"writing {rrd}")
-            write_outputs(npz, rrd, traj, r, layout, ev.curves())
-    _warn(notes)
-    console.print(_run_summary(path.stem, traj, m, solve_time, rrd, npz, ev))
+            info = {
+                "stack": stack,
+                "criteria": ", ".join(chosen) or "-",
+                "scenario": scenario,
+                "placement": placement,
+                "corpus": _corpus_label(corpus, learned.corpus),
+                "gradients": gradients,
+            }
+            write_outputs(npz, rrd, traj, r, layout, ev.curves(), evaluation=ev, info=info)
+    _warn([*notes, *_run_warnings(traj, m, ev, rate)])
+    summary = _run_summary(path.stem, traj, m, solve_time, rrd, npz, ev)
+    summary.add_row("criteria learned from", _corpus_label(corpus, learned.corpus, corpus_source))
+    console.print(summary)
     if tried:
         scores = ", ".join(f"{c.name} {c.m_hl_f:.3f}" for c in tried)
         console.print(f"placement optimize (m_hl,f of a short qp run): {scores}")
     console.print(
         f"human likeness m_hl = {ev.m_hl:.3f}, functional m_f = {ev.m_f:.3f} ({scenario}), "
-        f"m_hl,f = {ev.m_hl_f:.3f}, weights and x0: {ev.metric.source}   (details: hlik evaluate {npz}"
-        + (f" --metric {metric})" if metric is not None else ")")
+        f"m_hl,f = {ev.m_hl_f:.3f}, weights and x0: {ev.metric.source}"
     )
+    details = ["hlik", "evaluate", str(npz), *(["--metric", str(metric)] if metric is not None else [])]
+    # Commands to copy: each on its own line, never wrapped inside a path.
+    console.print(f"details: {shlex.join(details)}", soft_wrap=True)
+    console.print(f"open with: rerun {shlex.quote(str(rrd))}", soft_wrap=True)
+
+
+def _run_tag(
+    *,
+    solver: str,
+    stack: str,
+    default_stack: bool,
+    criteria: Sequence[str],
+    gradients: str,
+    placement: str | None,
+    scenario: str | None,
+    metric: Path | None,
+    rate: float,
+    layout: str,
+    corpus: Path | None,
+) -> str:
+    """The part of the default output name after motion and robot: every choice that changes the
+    result, defaults left out, e.g. ``slsqp_SYN_HJA_r_fd``, ``qp_my_stack_at-0.4_1.2_90``."""
+    parts = [solver, *(() if default_stack else (stack,)), *criteria]
+    parts += ["fd"] if gradients == "fd" else []
+    parts += [f"at-{placement}"] if placement is not None else []
+    parts += [scenario] if scenario is not None else []
+    parts += [f"metric-{metric.stem}"] if metric is not None else []
+    parts += [] if rate == 100.0 else ["native" if rate == 0 else f"{rate:g}Hz"]
+    parts += [layout] if layout != "side" else []
+    parts += [f"corpus-{Path(corpus).resolve().name or 'root'}"] if corpus is not None else []
+    return "_".join(parts)
+
+
+def _stack_label(stem: str, name: str) -> str:
+    """A stack file in a default output name: its stem, and its ``name`` where that differs (a
+    copied ``my.toml`` still named ``ee_pose`` must not write the bundled stack's file)."""
+    return stem if name == stem else f"{stem}_{name}"
+
+
+def _corpus_label(corpus: Path | None, files: Sequence[str], source: str = "") -> str:
+    """``demo (demo_pour_wipe.xml)`` or ``DIR (n files, from HLIK_CORPUS)``."""
+    if corpus is None:
+        return f"the bundled demo ({', '.join(files)})"
+    count = f"{len(files)} file" + ("s" if len(files) != 1 else "")
+    return f"{corpus} ({count}" + (f", from {source})" if source else ")")
+
+
+OFF_SHARE = 0.10  # a hand further than LAG from its target in more frames than this is warned about
+LOW_RATE = 50.0  # Hz below which --rate 0 is warned about: the criteria's constants assume 100 Hz
+
+
+def _run_warnings(traj: Trajectory, motion: HumanMotion, ev: Evaluation, rate: float) -> list[str]:
+    """One line for each thing the user should know about the result of ``hlik run``."""
+    from hlik.criteria.functional import position_error
+
+    n = traj.n_frames
+    share = lambda k: f"{k} of {n} frames ({100 * k / n:.0f} %)"  # noqa: E731
+    notes = []
+    # jm maps the joint angles: by design it neither tracks the hands nor keeps the speed limits
+    # (the summary says how far off it is); warning on every jm run would bury the real warnings.
+    tracking = traj.solver != "jm"
+    fpos = position_error(traj.tcp_pos, traj.targets.pos)  # (T, 2) m
+    for i, side in enumerate(("left", "right")):
+        off = int(np.count_nonzero(fpos[:, i] > LAG))
+        if tracking and off > OFF_SHARE * n:
+            notes.append(
+                f"{side} hand more than {100 * LAG:.0f} cm off its target in {share(off)}, "
+                f"up to {100 * fpos[:, i].max():.1f} cm (out of reach, or too fast for the speed limits)"
+            )
+    if rate == 0 and motion.rate < LOW_RATE:
+        notes.append(
+            f"--rate 0 keeps the motion's {motion.rate:g} Hz; the criteria's constants assume 100 Hz "
+            "(the paper's): consider --rate 100"
+        )
+    d = traj.diagnostics
+    if d.n_failed:
+        notes.append(f"the solver failed in {share(d.n_failed)}")
+    if d.n_unconverged:
+        notes.append(f"the solver stopped at its iteration cap in {share(d.n_unconverged)}")
+    touching = int(np.count_nonzero(ev.collisions))
+    if touching:
+        notes.append(f"the robot is in self-collision in {share(touching)}")
+    if tracking and ev.max_speed_ratio > 1.0 + 1e-6:
+        notes.append(f"joint speeds exceed their limits, at most {ev.max_speed_ratio:.2f} x the limit")
+    return notes
 
 
 LAG = 0.05  # m: a hand this far off its target is reported as lagging
@@ -319,10 +460,10 @@ def _file_stem(*parts: str) -> str:
     return re.sub(r"[^\w.+-]", "_", "_".join(parts)).lstrip(".") or "out"
 
 
-def _check_outputs(rrd: Path, npz: Path, inputs: list, create: bool) -> None:
+def _check_outputs(rrd: Path, npz: Path, inputs: list, create: bool, force: bool = False) -> None:
     """Fail before solving, not after: the recording must be a ``.rrd`` whose folder is writable,
-    and neither output may be one of the ``inputs`` (paths or names; those that are no file are
-    skipped)."""
+    neither output may be one of the ``inputs`` (paths or names; those that are no file are
+    skipped), and neither may exist unless ``force``."""
     if rrd.is_dir():
         raise HlikError(f"{rrd}: is a folder, expected a .rrd file name")
     if rrd.suffix != ".rrd":
@@ -335,9 +476,13 @@ def _check_outputs(rrd: Path, npz: Path, inputs: list, create: bool) -> None:
         for source in read:
             if output.exists() and os.path.samefile(output, source) or output.resolve() == source.resolve():
                 raise HlikError(f"{output}: is an input of this run ({source}); choose another --out")
+    if not force:
+        for output in (rrd, npz):
+            if output.is_file() or output.is_symlink():
+                raise HlikError(f"{output}: exists; pass --force to replace it, or --out to write elsewhere")
     folder = rrd.parent
-    if create:
-        folder.mkdir(parents=True, exist_ok=True)
+    if create and not folder.exists():  # made when the outputs are written: a failed run leaves none
+        folder = next(p for p in folder.parents if p.exists())
     if not folder.is_dir():
         raise HlikError(f"{rrd}: output folder {folder} does not exist")
     if npz.is_dir():
@@ -353,9 +498,12 @@ def write_outputs(
     robot: Robot,
     layout: str = "side",
     metrics: Mapping[str, np.ndarray] | None = None,
+    evaluation: Evaluation | None = None,
+    info: Mapping[str, str] | None = None,
 ) -> None:
     """Write the trajectory ``npz`` and its recording ``rrd`` together: both appear, or neither
     (:func:`hlik.atomic.atomic_paths`; a failed, interrupted or terminated write leaves no file).
+    ``evaluation`` and ``info`` (setting -> text) go to the recording's result panel.
 
     Raises:
         HlikError: naming the file that could not be written (never the temporary).
@@ -363,11 +511,15 @@ def write_outputs(
     from hlik.atomic import atomic_paths
     from hlik.recording import write_recording
 
+    with _writing(npz, rrd):
+        rrd.parent.mkdir(parents=True, exist_ok=True)
     with _writing(npz, rrd), atomic_paths(npz, rrd) as (npz_tmp, rrd_tmp):
         with _writing(npz):
             traj.save(npz_tmp)
         with _writing(rrd):
-            write_recording(rrd_tmp, traj, robot, layout=layout, metrics=metrics)
+            write_recording(
+                rrd_tmp, traj, robot, layout=layout, metrics=metrics, evaluation=evaluation, info=info
+            )
 
 
 @contextmanager
@@ -433,7 +585,7 @@ def _run_summary(title: str, traj, motion, solve_time: float, rrd: Path, npz: Pa
         f"fPOS_off mean {100 * off_pos.mean():.1f} cm, fORI_off mean {np.degrees(off_rot.mean()):.1f}°",
     )
     size = lambda path: f"{path.stat().st_size / 1e6:.1f} MB"  # noqa: E731
-    table.add_row("recording", f"{rrd} ({size(rrd)}; open with: rerun {rrd})")
+    table.add_row("recording", f"{rrd} ({size(rrd)})")
     table.add_row("trajectory", f"{npz} ({size(npz)})")
     return table
 
@@ -441,7 +593,9 @@ def _run_summary(title: str, traj, motion, solve_time: float, rrd: Path, npz: Pa
 @app.command()
 def evaluate(
     trajectory: Annotated[Path, typer.Argument(help="Trajectory .npz written by `hlik run`.")],
-    json_out: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
+    json_out: Annotated[
+        bool, typer.Option("--json", help="Print one JSON object.", metavar=_FLAG, show_default=False)
+    ] = False,
     corpus: CorpusOpt = None,
     scenario: ScenarioOpt = "pose",
     metric: MetricOpt = None,
@@ -465,7 +619,7 @@ def evaluate(
         except RobotError as e:
             raise HlikError(f"{trajectory}: robot: {e}") from None
         check_robot(trajectory, traj, r)
-        learned = learn(r, corpus)
+        learned = learn(r, corpus if corpus is not None else corpus_setting()[0])
         ev = evaluate_trajectory(traj, r, learned, scenario=scenario, metric=unified_metric)
     _warn(learned.notes)
     if json_out:
@@ -493,9 +647,11 @@ def learn(
     paper = {"armar3": 7.25, "armar6": 8.76, "dual_panda": 4.7}
     table = Table("robot", "corpus", "PCA var. (5)", "1st-order var. (5)", "Psi rms", "lambda_R", "paper")
     with _one_line():
+        corpus = corpus if corpus is not None else corpus_setting()[0]
         for name in robots or available_robots():
             r = load_robot(name)
-            lrn = learn_robot(r, corpus)
+            with _counting(f"learning {name}'s criteria from the corpus") as progress:
+                lrn = learn_robot(r, corpus, progress=progress)
             _warn(lrn.notes)
             table.add_row(
                 r.name,
@@ -509,6 +665,23 @@ def learn(
         folder = cache_dir()
     console.print(table)
     console.print(f"cache: {folder}")
+
+
+@contextmanager
+def _counting(description: str) -> Iterator[Callable[[int, int], None]]:
+    """A ``progress(k, n)`` callback drawing a transient bar on stderr while the block runs."""
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+    columns = (TextColumn("{task.description}", markup=False), BarColumn(), MofNCompleteColumn())
+    with Progress(
+        *columns,
+        TimeElapsedColumn(),
+        console=Console(stderr=True),
+        transient=True,
+        disable=not sys.stderr.isatty(),
+    ) as bar:
+        task = bar.add_task(description, total=None)
+        yield lambda k, n: bar.update(task, completed=k, total=n)
 
 
 def _check_scenario(scenario: str) -> None:
@@ -590,9 +763,12 @@ def study(
             MofNCompleteColumn(),
             TimeElapsedColumn(),
         )
-        with Progress(*columns, console=Console(stderr=True), transient=True) as progress:
+        with Progress(
+            *columns, console=Console(stderr=True), transient=True, disable=not sys.stderr.isatty()
+        ) as progress:
             task = progress.add_task("cells", total=n_cells)
             advance = lambda o: progress.update(task, advance=1, description=o.cell.file_name[:48])  # noqa: E731
+            corpus = corpus if corpus is not None else corpus_setting()[0]
             result = run_study(files, names, listed, out, seconds, workers, address, advance, corpus)
     failed = [o for o in result.outcomes if o.error]
     for o in failed:
@@ -663,7 +839,10 @@ def info(motion: MotionArg = None) -> None:
 @app.command()
 def calibrate(
     robot: Annotated[str, typer.Argument(help="Robot name (see `hlik robots`).")],
-    toml: Annotated[bool, typer.Option("--toml", help="Print the [mapping] tables as TOML.")] = False,
+    toml: Annotated[
+        bool,
+        typer.Option("--toml", help="Print the mapping tables as TOML.", metavar=_FLAG, show_default=False),
+    ] = False,
 ) -> None:
     """Derive the MMM -> robot joint mapping (paper Sec. III-A) and print it."""
     from hlik.robot.calibrate import calibrate as run_calibration

@@ -3,11 +3,18 @@
 from __future__ import annotations
 
 import os
+import sys
 from pathlib import Path
 
 from hlik.errors import SettingsError
 
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
 _PACKAGE = Path(__file__).resolve().parent
+CONFIG = "hlik.toml"  # in the working folder: settings that outlive one command (``corpus = "DIR"``)
 
 
 def _bundled(name: str) -> Path:
@@ -57,3 +64,37 @@ def cache_dir() -> Path:
             f"{folder} ({source}): cannot create the cache folder ({e.strerror or e})"
         ) from None
     return folder
+
+
+def corpus_setting() -> tuple[Path | None, str]:
+    """The corpus folder configured for this working folder, and where the setting came from:
+    ``$HLIK_CORPUS``, else ``corpus = "DIR"`` in ``./hlik.toml`` (relative to that file), else
+    ``(None, "")`` (the bundled demo).
+
+    Raises:
+        SettingsError: ``hlik.toml`` unreadable or not TOML, its ``corpus`` not a string, or the
+            configured folder does not exist (naming the setting).
+    """
+    if os.environ.get("HLIK_CORPUS"):
+        folder, source = Path(os.environ["HLIK_CORPUS"]).expanduser(), "HLIK_CORPUS"
+    else:
+        config = Path.cwd() / CONFIG
+        if not config.is_file():
+            return None, ""
+        try:
+            table = tomllib.loads(config.read_text(encoding="utf-8"))
+        except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as e:
+            raise SettingsError(f"{CONFIG}: cannot read the settings ({' '.join(str(e).split())})") from None
+        if "corpus" not in table:
+            return None, ""
+        if not isinstance(table["corpus"], str) or not table["corpus"]:
+            raise SettingsError(f'{CONFIG}: corpus must be a folder name, e.g. corpus = "motions"')
+        folder, source = config.parent / Path(table["corpus"]).expanduser(), f"corpus in {CONFIG}"
+    if not folder.exists():
+        raise SettingsError(f"{folder} ({source}): no such corpus folder")
+    return folder, source
+
+
+def default_corpus() -> Path | None:
+    """The default of ``--corpus``: see :func:`corpus_setting`; ``None`` is the bundled demo."""
+    return corpus_setting()[0]

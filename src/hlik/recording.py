@@ -5,15 +5,20 @@ Entity tree::
     /world/human/bodies/<body>      human model (MJCF geometry), world frame
     /world/human/hand_paths         recorded hand (TCP) paths
     /world/objects/<object>         scene objects as boxes fitted to their markers
+    /world/labels/<object>          each object's name (``true_`` dropped) just above its box
     /world/placement                the robot base as drawn (x and forward arrows), labelled with its rule
     /world/robot                    placement (and side-by-side offset) of the robot base
     /world/robot/bodies/<body>      robot model (MJCF geometry), base frame
     /world/robot/target_paths       hand targets; /world/robot/targets/<side> the current target frame
     /world/robot/tcp_paths          robot TCP paths; /world/robot/tcp/<side> the current TCP frame
-    /plots/joints/<joint>           joint angles, rad
+    /plots/joints/<joint>           joint angles, rad (m for a sliding joint)
     /plots/fPOS/<side>, /plots/fORI/<side>   tracking errors, m and rad
+    /plots/fPOS_off, /plots/fORI_off     relative-pose errors (paper Eqs. 3-4), relative runs only
     /plots/metrics/<criterion>      per-frame scores f_x0(h(t)) of the criteria, in [0, 1]
+    /plots/unified/{m_hl,m_f}       per-frame weighted scores whose means are m_hl and m_f
     /plots/solver/{iterations,failed}   solver diagnostics per frame
+    /result                         markdown: motion, robot, solver, settings, scores, diagnostics
+    /result/json                    the ``hlik evaluate --json`` object of the same evaluation
 
 Timelines: ``frame`` (index) and ``time`` (seconds). Everything time-varying goes through
 ``send_columns``, chunk by chunk of frames (:data:`CHUNK_FRAMES`), so that a long take needs no
@@ -24,9 +29,10 @@ from __future__ import annotations
 
 import errno
 import functools
+import json
 import shutil
 from collections.abc import Callable, Iterator, Mapping
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -37,10 +43,12 @@ import rerun.blueprint as rrb
 from scipy.spatial.transform import Rotation
 
 from hlik.atomic import atomic_path
-from hlik.criteria.functional import position_error, rotation_angle
+from hlik.criteria import registry, unified
+from hlik.criteria.functional import position_error, relative_errors, rotation_angle
 from hlik.fk import body_poses
 from hlik.human.kinematics import human_model, qpos_trajectory
 from hlik.human.motion import HumanMotion, ObjectMotion
+from hlik.metrics import Evaluation
 from hlik.problem.placement import Placement
 from hlik.robot.model import COLLISION_GROUP, SIDES, Robot
 from hlik.trajectory import Trajectory
@@ -65,6 +73,8 @@ def write_recording(
     layout: str = "side",
     metrics: Mapping[str, np.ndarray] | None = None,
     chunk_frames: int = CHUNK_FRAMES,
+    evaluation: Evaluation | None = None,
+    info: Mapping[str, str] | None = None,
 ) -> Path:
     """Write ``trajectory`` as a Rerun ``.rrd`` file, atomically: exactly ``path`` appears, whole.
 
@@ -79,25 +89,50 @@ def write_recording(
         robot: The robot it was retargeted to (for its geometry).
         layout: ``"side"`` (robot beside the human) or ``"overlay"`` (robot placed on the human).
         metrics: Criterion name -> (T,) per-frame score f_x0(h(t)), logged under ``/plots/metrics``
-            (see :meth:`hlik.metrics.Evaluation.curves`).
+            (see :meth:`hlik.metrics.Evaluation.curves`); wins over ``evaluation``'s curves.
         chunk_frames: Frames per chunk of columns (positive); the file shows the same for any.
+        evaluation: The trajectory's scores: their per-frame curves (unless ``metrics``), the
+            per-frame m_hl(t) and m_f(t), and the table of the text panel ``/result``.
+        info: Free-form settings shown in the text panel, key -> value (``stack``, ``criteria``,
+            ``corpus``, ``scenario``, ...); scenario ``relative`` (or the evaluation's) makes
+            fPOS_off / fORI_off the main tracking plots.
     """
     if layout not in LAYOUTS:
         raise ValueError(f"layout must be one of {LAYOUTS}, got {layout!r}")
     if chunk_frames < 1:
         raise ValueError(f"chunk_frames must be positive, got {chunk_frames}")
-    for name, values in (metrics or {}).items():
+    curves = dict(metrics) if metrics is not None else (evaluation.curves() if evaluation else {})
+    for name, values in curves.items():
         if np.shape(values) != (trajectory.n_frames,):
             raise ValueError(f"metric {name!r}: {np.shape(values)} values for {trajectory.n_frames} frames")
+    if evaluation is not None and len(evaluation.collisions) != trajectory.n_frames:
+        raise ValueError(
+            f"evaluation of {len(evaluation.collisions)} frames for a trajectory of {trajectory.n_frames}"
+        )
+    info = dict(info or {})
+    scenario = evaluation.scenario if evaluation is not None else info.get("scenario", "pose")
     path = Path(path)
     _check_space(path, trajectory.n_frames)
     recording_id = f"{trajectory.motion.name}-{robot.name}-{trajectory.solver}"
+    view = blueprint(
+        robot,
+        scenario=scenario,
+        criteria=tuple(curves),
+        unified=evaluation is not None,
+        camera=scene_camera(trajectory, robot, layout),
+        robot_camera=robot_camera(trajectory, robot),
+    )
     with atomic_path(path) as tmp:
         rec = rr.RecordingStream("hlik", recording_id=recording_id)
         try:
             rec.set_log_time_enabled(False)
-            rec.save(tmp, default_blueprint=blueprint())
-            _log(rec, trajectory, robot, layout, metrics or {}, chunk_frames)
+            rec.save(tmp, default_blueprint=view)
+            _log(rec, trajectory, robot, layout, curves, chunk_frames, scenario, evaluation)
+            text = summary(trajectory, robot, evaluation, info)
+            rec.log("/result", rr.TextDocument(text, media_type=rr.MediaType.MARKDOWN), static=True)
+            if evaluation is not None:
+                exact = json.dumps(evaluation.to_json(), indent=2)
+                rec.log("/result/json", rr.TextDocument(exact, media_type=rr.MediaType.TEXT), static=True)
         finally:
             rec.disconnect()  # writes the footer; the file is complete only now
     return path
@@ -121,22 +156,216 @@ def _check_space(path: Path, n_frames: int) -> None:
         )
 
 
-def blueprint() -> rrb.Blueprint:
-    """The 3D scene beside the joint-angle and tracking-error plots."""
+# The paper's clusters of the human-likeness criteria (formulas.md §10), one plot panel each; the
+# three singletons share one. Criteria not named here (user-registered) share an "other" panel.
+CLUSTERS = {
+    "hand pose and arm posture": ("EEA", "SOA_x", "SOA_q", "EEA_r"),
+    "joint space": ("HJL", "SYN", "HJA_r", "SYN_r"),
+    "manipulability, jerk, minimum info": ("MAN_r", "MJE", "MIS"),
+    "functional": ("fJLA", "fPOS", "fORI", "fPOS_off", "fORI_off"),
+}
+
+# Colours of the series of one panel, in order: Tableau 10, told apart at a glance. Joint k of
+# either arm gets the same colour, so that the arms compare at a glance.
+PALETTE = (
+    (31, 119, 180),
+    (255, 127, 14),
+    (44, 160, 44),
+    (214, 39, 40),
+    (148, 103, 189),
+    (140, 86, 75),
+    (227, 119, 194),
+    (127, 127, 127),
+    (188, 189, 34),
+    (23, 190, 207),
+)
+
+# Rerun's 3D view: vertical field of view (its default, 55 deg); the camera frames the figures in a
+# cone a tenth narrower vertically, and 1.2 times as wide horizontally (the default layout's view
+# is about 1.5 times as wide as tall).
+FOV_Y = np.radians(55.0)
+FRAME_TAN = 0.9 * np.tan(FOV_Y / 2)
+ASPECT = 1.2
+ELEVATION = 0.35  # the eye rises this much per metre it stands in front: a slight view from above
+
+
+@dataclass(frozen=True, eq=False)
+class Camera:
+    """Where a 3D view opens: the eye at ``position`` looking at ``target``, (3,) m each, in the
+    view's frame."""
+
+    position: np.ndarray
+    target: np.ndarray
+
+    def controls(self) -> rrb.EyeControls3D:
+        return rrb.EyeControls3D(
+            kind="Orbital",
+            position=[float(v) for v in self.position],
+            look_target=[float(v) for v in self.target],
+            eye_up=[0.0, 0.0, 1.0],
+        )
+
+
+def blueprint(
+    robot: Robot | None = None,
+    scenario: str = "pose",
+    criteria: tuple[str, ...] = (),
+    unified: bool = False,
+    camera: Camera | None = None,
+    robot_camera: Camera | None = None,
+) -> rrb.Blueprint:
+    """The 3D scene (human and robot, or the robot alone, in tabs) over the result panel, beside
+    the plots: joint angles per arm, tracking errors, scores by cluster, solver diagnostics.
+
+    Args:
+        robot: Splits the joint plot into left arm, right arm and other joints (one plot if None).
+        scenario: ``relative`` plots fPOS_off / fORI_off first, the absolute errors as context.
+        criteria: Names of the criteria with score curves (one panel per cluster they fall in).
+        unified: Whether m_hl(t) and m_f(t) are logged (they then open the score tabs).
+        camera, robot_camera: Where the scene (world frame) and robot (base frame) views open.
+    """
+    scene = rrb.Spatial3DView(
+        origin="/world", name="human and robot", eye_controls=camera.controls() if camera else None
+    )
+    alone = rrb.Spatial3DView(
+        origin="/world/robot",
+        name="robot alone",
+        eye_controls=robot_camera.controls() if robot_camera else None,
+    )
+    left = rrb.Vertical(
+        rrb.Tabs(scene, alone, active_tab=0),
+        rrb.TextDocumentView(origin="/result", contents="/result", name="result"),
+        row_shares=[3, 2],
+    )
+    rows: list[rrb.Container | rrb.View] = [_joint_views(robot)]
+    absolute = [("fPOS", "fPOS: TCP position error (m)"), ("fORI", "fORI: TCP orientation error (rad)")]
+    if scenario == "relative":
+        main = [
+            ("fPOS_off", "fPOS_off (m), optimised"),
+            ("fORI_off", "fORI_off (rad), optimised"),
+        ]
+        rows.append(rrb.Horizontal(*(_plot(f"/plots/{e}", name) for e, name in main)))
+        absolute = [(e, f"{e} ({unit}), context") for e, unit in (("fPOS", "m"), ("fORI", "rad"))]
+    rows.append(rrb.Horizontal(*(_plot(f"/plots/{e}", name) for e, name in absolute)))
+    scores = [_plot("/plots/unified", "m_hl(t), m_f(t) (1 = best)")] if unified else []
+    others = tuple(c for c in criteria if not any(c in members for members in CLUSTERS.values()))
+    for title, members in [*CLUSTERS.items(), ("other", others)]:
+        shown = [c for c in members if c in criteria]
+        if shown:
+            contents = [f"/plots/metrics/{_entity(c)}" for c in shown]
+            scores.append(_plot("/plots/metrics", f"scores: {title}", contents))
+    scores.append(_plot("/plots/solver", "solver: iterations per frame, failed"))
+    rows.append(rrb.Tabs(*scores, active_tab=0))
     return rrb.Blueprint(
         rrb.Horizontal(
-            rrb.Spatial3DView(origin="/world", name="scene"),
-            rrb.Vertical(
-                rrb.TimeSeriesView(origin="/plots/joints", name="joint angles (rad)"),
-                rrb.TimeSeriesView(origin="/plots/fPOS", name="fPOS: TCP position error (m)"),
-                rrb.TimeSeriesView(origin="/plots/fORI", name="fORI: TCP orientation error (rad)"),
-                rrb.TimeSeriesView(origin="/plots/metrics", name="human-likeness scores f(h(t)), 1 = best"),
-                rrb.TimeSeriesView(origin="/plots/solver", name="solver: iterations per frame, failed"),
-            ),
-            column_shares=[3, 2],
+            left, rrb.Vertical(*rows, row_shares=[3] + [2] * (len(rows) - 1)), column_shares=[3, 2]
         ),
         collapse_panels=True,
     )
+
+
+def _plot(origin: str, name: str, contents: list[str] | None = None) -> rrb.TimeSeriesView:
+    """A time-series panel, its legend in the top right corner (out of the way of most curves)."""
+    return rrb.TimeSeriesView(
+        origin=origin,
+        contents=contents or "$origin/**",
+        name=name,
+        plot_legend=rrb.PlotLegend(corner="RightTop"),
+    )
+
+
+def joint_groups(robot: Robot) -> dict[str, tuple[str, ...]]:
+    """Panel title -> joint names: the left arm's, the right arm's, then any others (hip, waist)."""
+    arms = {f"{side} arm": tuple(robot.arm_joints[side]) for side in SIDES}
+    taken = {j for joints in arms.values() for j in joints}
+    rest = tuple(j for j in robot.joint_names if j not in taken)
+    return {**arms, **({"other joints": rest} if rest else {})}
+
+
+def _joint_views(robot: Robot | None) -> rrb.Container | rrb.View:
+    if robot is None:
+        return _plot("/plots/joints", "joint angles")
+    return rrb.Horizontal(
+        *(
+            _plot("/plots/joints", f"{title}: joint angles", [f"/plots/joints/{_entity(j)}" for j in joints])
+            for title, joints in joint_groups(robot).items()
+        )
+    )
+
+
+def _joint_unit(model: mujoco.MjModel, name: str) -> str:
+    return "m" if model.joint(name).type == mujoco.mjtJoint.mjJNT_SLIDE else "rad"
+
+
+def scene_camera(traj: Trajectory, robot: Robot, layout: str = "side", samples: int = 24) -> Camera:
+    """The opening camera of the scene, world frame: in front of the human (where its pelvis faces,
+    on average over the take), a little above, as near as keeps every human and robot body and
+    every hand target inside the view cone with room to spare.
+
+    Only ``samples`` frames spread over the take are looked at (forward kinematics of a few frames).
+    """
+    rows = slice(0, traj.n_frames, max(1, -(-traj.n_frames // samples)))
+    human = human_model(traj.motion.height)
+    human_pos, _ = body_poses(human, qpos_trajectory(human, _frames(traj.motion, rows)))
+    shown = _display_placement(traj.placement, layout)
+    robot_pos = _robot_points(traj, robot, rows) @ shown.rotation.T + shown.translation
+    points = np.concatenate(
+        [
+            human_pos[:, 1:].reshape(-1, 3),
+            robot_pos,
+            traj.placement.to_world(traj.targets.pos[rows]).reshape(-1, 3),
+        ]
+    )
+    facing = traj.motion.root_rotation[:, :, 1].mean(axis=0)  # MMM root frame: y forward
+    return _framing(points, facing, fallback=traj.placement.rotation[:, 1])
+
+
+def robot_camera(traj: Trajectory, robot: Robot, samples: int = 24) -> Camera:
+    """The opening camera of the robot-alone view, robot base frame: in front of the robot (its
+    base y axis), framing its bodies and TCP paths over the take."""
+    rows = slice(0, traj.n_frames, max(1, -(-traj.n_frames // samples)))
+    forward = np.array([0.0, 1.0, 0.0])
+    return _framing(_robot_points(traj, robot, rows), forward, fallback=forward)
+
+
+def _robot_points(traj: Trajectory, robot: Robot, rows: slice) -> np.ndarray:
+    """(N, 3) robot body origins at the frames ``rows``, TCPs and targets there, base frame."""
+    pos, _ = body_poses(robot.model, traj.q[rows])
+    return np.concatenate(
+        [pos[:, 1:].reshape(-1, 3), traj.tcp_pos[rows].reshape(-1, 3), traj.targets.pos[rows].reshape(-1, 3)]
+    )
+
+
+def _framing(points: np.ndarray, facing: np.ndarray, fallback: np.ndarray, margin: float = 0.15) -> Camera:
+    """A camera looking back against ``facing`` (its horizontal part; ``fallback``'s if it has
+    none) at the centre of the box around ``points`` (N, 3), from the nearest distance that puts
+    every point, grown by ``margin`` m, inside the pyramid of half-angles atan(:data:`FRAME_TAN`)
+    up and down and atan(:data:`ASPECT` * :data:`FRAME_TAN`) left and right."""
+    points = points[np.all(np.isfinite(points), axis=1)]
+    forward = _horizontal(facing)
+    if forward is None:
+        forward = _horizontal(fallback)
+    if forward is None:
+        forward = np.array([0.0, 1.0, 0.0])
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    target = (lo + hi) / 2
+    back = forward + [0.0, 0.0, ELEVATION]
+    back /= np.linalg.norm(back)  # from the target towards the eye
+    right = np.cross(-back, [0.0, 0.0, 1.0])
+    right /= np.linalg.norm(right)
+    up = np.cross(right, -back)
+    rel = points - target
+    lateral = np.maximum(np.abs(rel @ right) / ASPECT, np.abs(rel @ up)) + margin
+    # a point at lateral offset s, z nearer the eye than the target, is inside when s <= (d - z) tan
+    distance = float(np.max(rel @ back + margin + lateral / FRAME_TAN))
+    return Camera(target + distance * back, target)
+
+
+def _horizontal(v: np.ndarray) -> np.ndarray | None:
+    """The unit horizontal direction of ``v`` (3,), or None if it is (nearly) vertical."""
+    h = np.array([v[0], v[1], 0.0])
+    norm = np.linalg.norm(h)
+    return h / norm if norm > 1e-6 else None
 
 
 # One entity's columns for some frames: (entity path, time columns, component columns).
@@ -154,6 +383,8 @@ def _log(
     layout: str,
     metrics: Mapping[str, np.ndarray],
     chunk_frames: int = CHUNK_FRAMES,
+    scenario: str = "pose",
+    evaluation: Evaluation | None = None,
 ) -> None:
     """Log everything static once, then every track chunk by chunk of ``chunk_frames`` frames."""
     rec.log("/world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
@@ -172,7 +403,7 @@ def _log(
     ]
     _log_paths(rec, "/world/human/hand_paths", traj.placement.to_world(traj.targets.pos), SIDE_COLORS)
     for name, obj in traj.motion.objects.items():
-        tracks += _object(rec, f"/world/objects/{_entity(name)}", obj, times, chunk_frames)
+        tracks += _object(rec, _entity(name), obj, times, chunk_frames)
 
     # The robot base as drawn (the side layout shifts it beside the human; overlay shows it where
     # the placement put it) and the rule that placed it.
@@ -210,18 +441,38 @@ def _log(
     # curves: entity -> (T,) values, or the values of some frames (the tracking errors, computed
     # chunk by chunk like everything else derived)
     curves: dict[str, Curve] = {}
-    for j, name in enumerate(traj.joint_names):
-        curves[_curve(rec, f"/plots/joints/{_entity(name)}", name)] = traj.q[:, j]
+    for joints in joint_groups(robot).values():
+        for k, name in enumerate(joints):
+            label = f"{name} ({_joint_unit(robot.model, name)})"
+            entity = _curve(rec, f"/plots/joints/{_entity(name)}", label, PALETTE[k % len(PALETTE)])
+            curves[entity] = traj.q[:, traj.joint_names.index(name)]
     for i, side in enumerate(SIDES):
         fpos = _error(position_error, traj.tcp_pos[:, i], traj.targets.pos[:, i])
         fori = _error(rotation_angle, traj.tcp_rot[:, i], traj.targets.rot[:, i])
-        curves[_curve(rec, f"/plots/fPOS/{side}", f"fPOS {side}", SIDE_COLORS[side])] = fpos
-        curves[_curve(rec, f"/plots/fORI/{side}", f"fORI {side}", SIDE_COLORS[side])] = fori
-    for name, values in metrics.items():
-        curves[_curve(rec, f"/plots/metrics/{_entity(name)}", name)] = np.asarray(values, dtype=float)
+        curves[_curve(rec, f"/plots/fPOS/{side}", f"fPOS {side} (m)", SIDE_COLORS[side])] = fpos
+        curves[_curve(rec, f"/plots/fORI/{side}", f"fORI {side} (rad)", SIDE_COLORS[side])] = fori
+    if scenario == "relative":
+        arrays = (traj.tcp_pos, traj.tcp_rot, traj.targets.pos, traj.targets.rot)
+        off = lambda rows, k: relative_errors(*(a[rows] for a in arrays))[k]  # noqa: E731
+        curves[_curve(rec, "/plots/fPOS_off", "fPOS_off (m)", PALETTE[0])] = functools.partial(off, k=0)
+        curves[_curve(rec, "/plots/fORI_off", "fORI_off (rad)", PALETTE[0])] = functools.partial(off, k=1)
+    ordered = [c for members in CLUSTERS.values() for c in members if c in metrics]
+    ordered += [c for c in metrics if c not in ordered]
+    # colours restart in every cluster panel; "other" criteria follow on
+    slot = {c: k for members in CLUSTERS.values() for k, c in enumerate(members)}
+    for n, name in enumerate(ordered):
+        color = PALETTE[slot.get(name, n) % len(PALETTE)]
+        entity = _curve(rec, f"/plots/metrics/{_entity(name)}", f"{name} (score)", color)
+        curves[entity] = np.asarray(metrics[name], dtype=float)
+    if evaluation is not None:
+        m_hl, m_f = unified_curves(evaluation)
+        curves[_curve(rec, "/plots/unified/m_hl", "m_hl(t) (score)", PALETTE[0])] = m_hl
+        curves[_curve(rec, "/plots/unified/m_f", "m_f(t) (score)", PALETTE[1])] = m_f
     d = traj.diagnostics
-    curves[_curve(rec, "/plots/solver/iterations", "iterations")] = d.iterations.astype(float)
-    curves[_curve(rec, "/plots/solver/failed", "failed (1)")] = d.failed.astype(float)
+    curves[_curve(rec, "/plots/solver/iterations", "iterations (count)", PALETTE[0])] = d.iterations.astype(
+        float
+    )
+    curves[_curve(rec, "/plots/solver/failed", "failed (1 = yes)", PALETTE[3])] = d.failed.astype(float)
     tracks.append(functools.partial(_curve_columns, curves, times))
 
     for start in range(0, traj.n_frames, chunk_frames):
@@ -346,8 +597,10 @@ def _frames_track(rec, entity: str, pos: np.ndarray, rot: np.ndarray, times: np.
 
 
 def _object(rec, entity: str, obj: ObjectMotion, times: np.ndarray, chunk_frames: int) -> list[Track]:
-    """Log a scene object as a box around its markers (or a 5 cm cube); the track of its pose,
-    where that is finite (none if it never is)."""
+    """Log a scene object as a box around its markers (or a 5 cm cube) at ``/world/objects/<entity>``
+    and its name, ``true_`` dropped, 3 cm above the box's top at ``/world/labels/<entity>`` (a label
+    on the box itself sits on the hand holding it); the track of both, where the object's pose is
+    finite (none if it never is)."""
     known = np.all(np.isfinite(obj.position), axis=1) & np.all(np.isfinite(obj.rotation), axis=(1, 2))
     if not known.any():
         return []
@@ -358,15 +611,15 @@ def _object(rec, entity: str, obj: ObjectMotion, times: np.ndarray, chunk_frames
         if len(local):
             lo, hi = np.percentile(local, [2, 98], axis=0)
             half, center = np.maximum((hi - lo) / 2, 0.01), (hi + lo) / 2
+    box, label = f"/world/objects/{entity}", f"/world/labels/{entity}"
     rec.log(
-        entity,
-        rr.Boxes3D(
-            half_sizes=[half],
-            centers=[center],
-            colors=[(160, 160, 160, 120)],
-            fill_mode=_FILL,
-            labels=[obj.name],
-        ),
+        box,
+        rr.Boxes3D(half_sizes=[half], centers=[center], colors=[(160, 160, 160, 120)], fill_mode=_FILL),
+        static=True,
+    )
+    rec.log(
+        label,
+        rr.Points3D([[0.0, 0.0, 0.0]], radii=0.004, colors=[(90, 90, 90)], labels=[object_label(obj.name)]),
         static=True,
     )
 
@@ -374,9 +627,20 @@ def _object(rec, entity: str, obj: ObjectMotion, times: np.ndarray, chunk_frames
         frames = rows.start + np.flatnonzero(known[rows])
         if len(frames):
             index = [rr.TimeColumn("frame", sequence=frames), rr.TimeColumn("time", duration=times[frames])]
-            yield entity, index, _pose_columns(obj.position[frames], obj.rotation[frames])
+            pos, rot = obj.position[frames], obj.rotation[frames]
+            yield box, index, _pose_columns(pos, rot)
+            # the box's centre, raised by its half-height along the world's z (rotated box) + 3 cm
+            top = np.abs(rot[:, 2, :]) @ half + 0.03
+            above = pos + rot @ center + top[:, None] * [0.0, 0.0, 1.0]
+            yield label, index, rr.Transform3D.columns(translation=above)
 
     return [track]
+
+
+def object_label(name: str) -> str:
+    """The name shown for a scene object: the KIT takes' ``true_`` prefix (ground-truth object
+    poses) dropped, ``true_knife_black`` -> ``knife_black``."""
+    return name.removeprefix("true_") or name
 
 
 def _local_markers(obj: ObjectMotion, frames: np.ndarray, chunk_frames: int) -> np.ndarray:
@@ -389,6 +653,72 @@ def _local_markers(obj: ObjectMotion, frames: np.ndarray, chunk_frames: int) -> 
         for i, m in enumerate(obj.markers.values()):
             local[i, start : start + len(rows)] = np.einsum("tji,tj->ti", rot, m[rows] - pos)
     return local.reshape(-1, 3)
+
+
+def unified_curves(evaluation: Evaluation) -> tuple[np.ndarray, np.ndarray]:
+    """(T,) m_hl(t) = sum_i w_i f_i(t) and (T,) m_f(t), the mean of the scenario's functional f_i(t).
+
+    A per-frame m_hl is not defined by the paper; these are the weighted sums Eq. 2 applies to the
+    per-frame scores f_i(t) = f_x0(h_i(t)), so that their means over the frames are exactly m_hl and
+    m_f (the m_i are such means).
+    """
+    f = evaluation.curves()
+    weights = evaluation.metric.weights
+    m_hl = sum(weights[k] * f[k] for k in registry.human_likeness())
+    m_f = np.mean([f[k] for k in unified.FUNCTIONAL_X0[evaluation.scenario]], axis=0)
+    return np.asarray(m_hl, dtype=float), np.asarray(m_f, dtype=float)
+
+
+def summary(traj: Trajectory, robot: Robot, evaluation: Evaluation | None, info: Mapping[str, str]) -> str:
+    """The markdown of the result panel: motion, robot, solver, placement and ``info``'s settings;
+    the scores (the numbers of ``hlik evaluate --json``, rounded); the solver's diagnostics; the
+    hlik version."""
+    from hlik import __version__
+
+    d = traj.diagnostics
+    rate = (traj.n_frames - 1) / (traj.times[-1] - traj.times[0]) if traj.n_frames > 1 else 0.0
+    settings = {
+        "motion": f"{traj.motion.name} ({traj.n_frames} frames, {rate:.0f} Hz)",
+        "robot": f"{robot.title} ({robot.name})",
+        "solver": traj.solver,
+        "placement": traj.placement.method,
+        **{k: str(v) for k, v in info.items()},
+    }
+    lines = [f"### {traj.motion.name} on {robot.name}, {traj.solver}", "", "| | |", "|---|---|"]
+    lines += [f"| {k} | {_cell(v)} |" for k, v in settings.items()]
+    if evaluation is not None:
+        result = evaluation.to_json()
+        lines += [
+            "",
+            f"**m_hl = {result['m_hl']:.4f}**, m_f = {result['m_f']:.4f}, "
+            f"m_hl,f = {result['m_hl_f']:.4f} (scenario {result['scenario']}; "
+            f"weights and x0: {_cell(result['metric'])})",
+            "",
+            "| criterion | mean h | m |",
+            "|---|---:|---:|",
+        ]
+        for group in ("metrics", "functional"):
+            lines += [f"| {k} | {v['h']:.4g} | {v['m']:.4f} |" for k, v in result[group].items()]
+    n = traj.n_frames
+    lines += [
+        "",
+        "| diagnostics | |",
+        "|---|---:|",
+        f"| failed frames | {d.n_failed} of {n} |",
+        f"| unconverged frames | {d.n_unconverged} of {n} |",
+    ]
+    if evaluation is not None:
+        lines += [
+            f"| frames in self-collision | {int(np.count_nonzero(evaluation.collisions))} of {n} |",
+            f"| max speed ratio | {evaluation.max_speed_ratio:.3g} |",
+        ]
+    lines += ["", f"hlik {__version__}"]
+    return "\n".join(lines) + "\n"
+
+
+def _cell(text: str) -> str:
+    """``text`` safe in a markdown table cell."""
+    return str(text).replace("|", "\\|").replace("\n", " ")
 
 
 def _curve(rec, entity: str, name: str, color=None) -> str:

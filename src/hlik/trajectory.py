@@ -113,6 +113,7 @@ def check_robot(path: str | Path, trajectory: Trajectory, robot: Robot) -> None:
         hlik.errors.TrajectoryFormatError: naming the file, the robot and the first joint that differs.
     """
     if trajectory.joint_names == robot.joint_names:
+        _check_limits(path, trajectory, robot)
         return
     ours, theirs = robot.joint_names, trajectory.joint_names
     if len(ours) != len(theirs):
@@ -121,6 +122,28 @@ def check_robot(path: str | Path, trajectory: Trajectory, robot: Robot) -> None:
         k = next(i for i, (a, b) in enumerate(zip(ours, theirs)) if a != b)
         detail = f"joint {k} is {theirs[k]!r}, {robot.name}'s is {ours[k]!r}"
     raise TrajectoryFormatError(f"{path}: joint_names are not those of robot {robot.name!r} ({detail})")
+
+
+# rad (m): every solver keeps a joint within its limits; a saved angle farther out was not solved
+LIMIT_SLACK = 1e-6
+UNLIMITED_BOUND = 1e3  # rad an unlimited joint may wind to (160 turns): beyond, not an angle
+
+
+def _check_limits(path: str | Path, trajectory: Trajectory, robot: Robot) -> None:
+    """Refuse joint values outside ``robot``'s limits (or beyond ``UNLIMITED_BOUND`` for unlimited
+    joints), naming the joint, the worst value and its frame."""
+    lower = np.where(np.isfinite(robot.lower), robot.lower - LIMIT_SLACK, -UNLIMITED_BOUND)
+    upper = np.where(np.isfinite(robot.upper), robot.upper + LIMIT_SLACK, UNLIMITED_BOUND)
+    q = trajectory.q
+    outside = (q < lower) | (q > upper)
+    if not np.any(outside):
+        return
+    j = int(np.argmax(outside.any(axis=0)))
+    k = int(np.argmax(np.where(outside[:, j], np.abs(q[:, j]), -np.inf)))
+    raise TrajectoryFormatError(
+        f"{path}: q: joint {robot.joint_names[j]!r} is {q[k, j]:.4g} at frame {k}, outside its limits "
+        f"{lower[j]:.4g}..{upper[j]:.4g} ({int(outside[:, j].sum())} frames); not a solved trajectory"
+    )
 
 
 def _read_arrays(path: Path) -> dict[str, np.ndarray]:

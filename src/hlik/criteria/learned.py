@@ -13,7 +13,7 @@ truncated or unreadable is fitted again, and :attr:`Learned.notes` says so in on
 from __future__ import annotations
 
 import hashlib
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -73,11 +73,17 @@ def corpus_files(folder: str | Path | None = None) -> list[Path]:
     return files
 
 
-def learn(robot: Robot, corpus: str | Path | None = None, cache: bool = True) -> Learned:
+def learn(
+    robot: Robot,
+    corpus: str | Path | None = None,
+    cache: bool = True,
+    progress: Callable[[int, int], None] | None = None,
+) -> Learned:
     """Fit (or load from the cache) the learned pieces of ``robot`` on a corpus folder.
 
     A cache entry that is unreadable, edited or written for another key is fitted again and
     rewritten; the result's ``notes`` say so (as they say when the entry cannot be written).
+    ``progress(k, n)`` is called after reading each of the ``n`` corpus files when fitting.
     """
     files = corpus_files(corpus)
     key = {
@@ -97,7 +103,12 @@ def learn(robot: Robot, corpus: str | Path | None = None, cache: bool = True) ->
                 problem = f"does not hold learned pieces ({type(e).__name__})"
         if problem is not None:
             notes.append(f"{path}: cache entry {problem}; fitted again")
-    learned = fit(robot, [load_motion(f, rate=RATE) for f in files], tuple(f.name for f in files))
+    motions = []
+    for f in files:
+        motions.append(load_motion(f, rate=RATE))
+        if progress is not None:
+            progress(len(motions), len(files))
+    learned = fit(robot, motions, tuple(f.name for f in files))
     if cache:
         failed = write_entry(path, _to_arrays(learned), key)
         notes += [failed] if failed else []

@@ -8,9 +8,26 @@
 - :mod:`~hlik.human.demo`: the bundled demonstration motion.
 """
 
-from hlik.human.kinematics import HumanKinematics, forward_kinematics, human_model
-from hlik.human.load import load_motion
-from hlik.human.motion import ARM_JOINTS, HumanMotion, ObjectMotion
+from __future__ import annotations
+
+from importlib import import_module
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from hlik.human.kinematics import HumanKinematics, forward_kinematics, human_model
+    from hlik.human.load import load_motion
+    from hlik.human.motion import ARM_JOINTS, HumanMotion, ObjectMotion
+
+# Imported on first use (PEP 562), so that importing one module of the package stays cheap.
+_WHERE = {
+    "HumanKinematics": "hlik.human.kinematics",
+    "forward_kinematics": "hlik.human.kinematics",
+    "human_model": "hlik.human.kinematics",
+    "load_motion": "hlik.human.load",
+    "ARM_JOINTS": "hlik.human.motion",
+    "HumanMotion": "hlik.human.motion",
+    "ObjectMotion": "hlik.human.motion",
+}
 
 __all__ = [
     "ARM_JOINTS",
@@ -21,3 +38,11 @@ __all__ = [
     "human_model",
     "load_motion",
 ]
+
+
+def __getattr__(name: str) -> Any:
+    if name not in _WHERE:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(import_module(_WHERE[name]), name)
+    globals()[name] = value
+    return value

@@ -9,8 +9,27 @@
 - :mod:`~hlik.robot.reachability`: oriented reachability maps of the hands (placement).
 """
 
-from hlik.robot.model import SIDES, SITES, Robot, available_robots, joint_mapping, load_robot, tcp_poses
-from hlik.robot.state import RobotState, robot_state
+from __future__ import annotations
+
+from importlib import import_module
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from hlik.robot.model import SIDES, SITES, Robot, available_robots, joint_mapping, load_robot, tcp_poses
+    from hlik.robot.state import RobotState, robot_state
+
+# Imported on first use (PEP 562), so that importing one module of the package stays cheap.
+_WHERE = {
+    "SIDES": "hlik.robot.model",
+    "SITES": "hlik.robot.model",
+    "Robot": "hlik.robot.model",
+    "available_robots": "hlik.robot.model",
+    "joint_mapping": "hlik.robot.model",
+    "load_robot": "hlik.robot.model",
+    "tcp_poses": "hlik.robot.model",
+    "RobotState": "hlik.robot.state",
+    "robot_state": "hlik.robot.state",
+}
 
 __all__ = [
     "SIDES",
@@ -23,3 +42,11 @@ __all__ = [
     "robot_state",
     "tcp_poses",
 ]
+
+
+def __getattr__(name: str) -> Any:
+    if name not in _WHERE:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(import_module(_WHERE[name]), name)
+    globals()[name] = value
+    return value

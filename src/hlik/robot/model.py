@@ -7,16 +7,19 @@ import re
 from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import mujoco
 import numpy as np
 
 from hlik.errors import HlikError, MotionFormatError, RobotError
 from hlik.fk import site_poses
-from hlik.human.motion import HumanMotion
 from hlik.paths import robots_dir
 from hlik.robot.mapping import JointMapping
 from hlik.tomlfile import read_toml
+
+if TYPE_CHECKING:  # scipy comes with the motion; `hlik robots` needs none
+    from hlik.human.motion import HumanMotion
 
 # A robot's name names its files (caches, recordings): no separators, no "..".
 NAME = re.compile(r"[A-Za-z0-9_-]+")

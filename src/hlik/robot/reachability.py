@@ -21,6 +21,7 @@ is made again, with a one-line note on the result (``notes``) that the CLI print
 from __future__ import annotations
 
 import hashlib
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from functools import cached_property
 
@@ -93,10 +94,16 @@ def _bin(u: np.ndarray, n: int) -> np.ndarray:
     return np.minimum((u * n).astype(int), n - 1)
 
 
-def reachability_map(robot: Robot, cache: bool = True, n_samples: int = N_SAMPLES) -> ReachabilityMap:
+def reachability_map(
+    robot: Robot,
+    cache: bool = True,
+    n_samples: int = N_SAMPLES,
+    progress: Callable[[int, int], None] | None = None,
+) -> ReachabilityMap:
     """The robot's reachability map, from the cache (keyed by model, description and sampling) or
     sampled now (a few seconds; seeded, so the same model gives the same map). A cache entry that is
-    unreadable or does not match is sampled again; ``notes`` says so."""
+    unreadable or does not match is sampled again; ``notes`` says so. ``progress(k, n_samples)``
+    reports the sampling (see :func:`sample_map`)."""
     key = {
         "format": CACHE_VERSION,
         "robot": robot.name,
@@ -117,7 +124,7 @@ def reachability_map(robot: Robot, cache: bool = True, n_samples: int = N_SAMPLE
                 problem = f"does not hold a reachability map ({one_line(e)})"
         if problem is not None:
             notes.append(f"{path}: cache entry {problem}; sampled the map again")
-    reach = sample_map(robot, n_samples)
+    reach = sample_map(robot, n_samples, progress=progress)
     if cache:
         arrays = {
             "robot": np.array(reach.robot), "origin": reach.origin, "cell": np.array(reach.cell),
@@ -128,9 +135,12 @@ def reachability_map(robot: Robot, cache: bool = True, n_samples: int = N_SAMPLE
     return replace(reach, notes=tuple(notes))
 
 
-def sample_map(robot: Robot, n_samples: int, seed: int = SEED) -> ReachabilityMap:
+def sample_map(
+    robot: Robot, n_samples: int, seed: int = SEED, progress: Callable[[int, int], None] | None = None
+) -> ReachabilityMap:
     """Sample ``n_samples`` configurations uniformly within the limits of the arm and extra joints
-    (the rest at home), drop self-colliding ones, and count both TCPs into the 6D grid."""
+    (the rest at home), drop self-colliding ones, and count both TCPs into the 6D grid.
+    ``progress(k, n_samples)`` is called every 1000 samples and at the end."""
     model = robot.model
     data = mujoco.MjData(model)
     moving = np.unique(np.concatenate([robot.index(robot.extra_joints + robot.arm_joints[s]) for s in SIDES]))
@@ -149,6 +159,8 @@ def sample_map(robot: Robot, n_samples: int, seed: int = SEED) -> ReachabilityMa
         free[k] = data.ncon == 0
         pos[k] = data.site_xpos[tcp]
         rot[k] = data.site_xmat[tcp]
+        if progress is not None and ((k + 1) % 1000 == 0 or k + 1 == n_samples):
+            progress(k + 1, n_samples)
     pos, tcp_rot = pos[free], rot[free].reshape(-1, 2, 3, 3)
     shoulder_y = site_poses(model, robot.home[None], robot.site_ids[:, SITES.index("shoulder")])[0][0, :, 1]
     front = pos[:, :, 1] > shoulder_y  # (N, 2); the robot faces +y

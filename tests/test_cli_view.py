@@ -1,0 +1,367 @@
+"""What a user meets on the command line (issue 16): default output names that differ for runs
+that differ, no silent overwrites, warnings at the end of ``hlik run``, progress callbacks, a quick
+``hlik --help``, flags shown as flags, an unbroken ``rerun <path>`` line, a configurable corpus."""
+
+from __future__ import annotations
+
+import itertools
+import json
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from typer.testing import CliRunner
+
+from conftest import data_file, kit_takes
+from hlik.cli import _run_tag, _run_warnings, app
+from hlik.criteria.functional import position_error
+from hlik.errors import SettingsError
+from hlik.human.load import load_motion
+from hlik.human.mmm_format import write_mmm
+from hlik.paths import corpus_setting, tasks_dir
+from hlik.trajectory import load_trajectory
+
+WARNING = re.compile(
+    r"warning: (left|right) hand more than 5 cm off its target in (\d+) of (\d+) frames \(\d+ %\), "
+    r"up to (\d+\.\d) cm"
+)
+
+
+def invoke(*args: object, env: dict | None = None):
+    return CliRunner().invoke(app, [str(a) for a in args], env=env)
+
+
+def one_line_error(result, *named: str) -> str:
+    err = result.stderr.strip()
+    assert result.exit_code == 2, (result.exit_code, result.output)
+    assert len(err.splitlines()) == 1 and err.startswith("error: "), err
+    for part in named:
+        assert part in err, (part, err)
+    return err
+
+
+@pytest.fixture(scope="module")
+def short_take(tmp_path_factory) -> Path:
+    """Two seconds of a KIT take (10 Hz), as its own MMM file."""
+    path = tmp_path_factory.mktemp("take") / "short.xml"
+    write_mmm(load_motion(kit_takes()[0]).crop(0.0, 2.0), path)
+    return path
+
+
+# --- 1. default names and --force --------------------------------------------------------------
+
+BASE = dict(
+    solver="qp",
+    stack="ee_pose",
+    default_stack=True,
+    criteria=(),
+    gradients="analytic",
+    placement=None,
+    scenario=None,
+    metric=None,
+    rate=100.0,
+    layout="side",
+    corpus=None,
+)
+VARIANTS = {
+    "solver": ["jm", "jv", "slsqp"],
+    "stack": [("my", False), ("relative_pose", False)],
+    "criteria": [("SYN",), ("SYN", "HJA_r")],
+    "gradients": ["fd"],
+    "placement": ["mapped", "0.5,1,90"],
+    "scenario": ["relative"],
+    "metric": [Path("study/metric.toml")],
+    "rate": [0.0, 50.0],
+    "layout": ["overlay"],
+    "corpus": [Path("/data/kit")],
+}
+
+
+def _tag(**changes) -> str:
+    options = {**BASE, **changes}
+    if isinstance(options["stack"], tuple):
+        options["stack"], options["default_stack"] = options["stack"]
+    return _run_tag(**options)
+
+
+def test_default_names_differ_for_runs_that_differ():
+    """Every option that changes the result changes the name, alone and in pairs."""
+    single = [{k: v} for k, values in VARIANTS.items() for v in values]
+    pairs = [a | b for a, b in itertools.combinations(single, 2) if a.keys() != b.keys()]
+    runs = [{}, *single, *pairs]
+    tags = [_tag(**run) for run in runs]
+    assert len(set(tags)) == len(tags), [t for t in tags if tags.count(t) > 1]
+    assert _tag() == "qp"  # the defaults add nothing
+    assert all(re.fullmatch(r"[\w.,+-]+", t) for t in tags)
+
+
+def test_copied_stack_and_plain_run_write_different_files(short_take, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    shutil.copy(tasks_dir() / "ee_pose.toml", tmp_path / "my.toml")
+    plain = invoke("run", short_take, "--solver", "qp", "--rate", "0", "--placement", "mapped")
+    copied = invoke(
+        "run", short_take, "--solver", "qp", "--rate", "0", "--placement", "mapped", "--stack", "my.toml"
+    )
+    assert plain.exit_code == 0 and copied.exit_code == 0, (plain.output, copied.output)
+    written = sorted(p.name for p in (tmp_path / "recordings").iterdir())
+    assert len(written) == 4, written  # two .rrd, two .npz
+    assert [n for n in written if "_qp_my_ee_pose_" in n], written  # the copy keeps its name inside
+
+
+def test_overwrite_refused_without_force(short_take, tmp_path):
+    out = tmp_path / "x.rrd"
+    args = ("run", short_take, "--solver", "jm", "--rate", "0", "--placement", "mapped", "--out", out)
+    assert invoke(*args).exit_code == 0
+    out.write_bytes(b"mine")
+    one_line_error(invoke(*args), str(out), "--force", "--out")
+    assert out.read_bytes() == b"mine"  # refused before solving, nothing written
+    out.unlink()  # the trajectory beside it is protected as well
+    one_line_error(invoke(*args), str(out.with_suffix(".npz")), "--force")
+    result = invoke(*args, "--force")
+    assert result.exit_code == 0, result.output
+    assert out.read_bytes()[:4] == b"RRF2" and load_trajectory(out.with_suffix(".npz")).solver == "jm"
+
+
+# --- 2. warnings -------------------------------------------------------------------------------
+
+
+def test_walk_out_of_reach_is_warned_with_its_share_and_max(tmp_path):
+    walk = data_file("kit_ml/00001_mmm.xml")
+    out = tmp_path / "walk.rrd"
+    result = invoke(
+        "run",
+        walk,
+        "--robot",
+        "armar3",
+        "--solver",
+        "qp",
+        "--rate",
+        "10",
+        "--placement",
+        "mapped",
+        "--out",
+        out,
+    )
+    assert result.exit_code == 0, result.output
+    warned = {m[1]: m for m in WARNING.finditer(result.stderr)}
+    assert warned, result.stderr
+    traj = load_trajectory(out.with_suffix(".npz"))
+    fpos = position_error(traj.tcp_pos, traj.targets.pos)
+    for i, side in enumerate(("left", "right")):
+        off = int(np.count_nonzero(fpos[:, i] > 0.05))
+        assert (side in warned) == (off > 0.1 * traj.n_frames)
+        if side in warned:
+            assert int(warned[side][2]) == off and int(warned[side][3]) == traj.n_frames
+            assert float(warned[side][4]) == pytest.approx(100 * fpos[:, i].max(), abs=0.06)
+    assert max(float(m[4]) for m in warned.values()) > 40  # the walk leaves ARMAR-III far behind
+    assert "out of reach" in result.stderr
+
+
+def test_low_native_rate_and_limits_are_warned_as_the_scores_say(tmp_path):
+    stir = next(t for t in kit_takes() if "Stir" in t.name)
+    out = tmp_path / "stir.rrd"
+    result = invoke("run", stir, "--solver", "qp", "--rate", "0", "--placement", "mapped", "--out", out)
+    assert result.exit_code == 0, result.output
+    lines = result.stderr.splitlines()
+    assert all(line.startswith("warning: ") for line in lines if line), lines
+    assert any("--rate 0 keeps the motion's 10 Hz" in line and "100 Hz" in line for line in lines), lines
+    scores = json.loads(invoke("evaluate", out.with_suffix(".npz"), "--json").stdout)
+    speeding = any("joint speeds exceed their limits" in line for line in lines)
+    assert speeding == (scores["max_speed_ratio"] > 1 + 1e-6)
+    touching = [line for line in lines if "self-collision" in line]
+    assert bool(touching) == (scores["collisions"] > 0)
+    if touching:
+        assert f"in {scores['collisions']} of " in touching[0]
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    n=st.integers(1, 500),
+    failed=st.integers(0, 500),
+    capped=st.integers(0, 500),
+    touching=st.integers(0, 500),
+    speed=st.floats(0.0, 3.0),
+    rate=st.sampled_from([0.0, 100.0]),
+    native=st.floats(1.0, 200.0),
+    solver=st.sampled_from(["jm", "qp"]),
+)
+def test_solver_and_body_warnings_count_frames(n, failed, capped, touching, speed, rate, native, solver):
+    failed, capped, touching = min(failed, n), min(capped, n - min(failed, n)), min(touching, n)
+    on_target = np.zeros((n, 2, 3))
+    far = on_target + [0.0, 0.0, 0.3]  # every frame 30 cm off
+    diag = SimpleNamespace(n_failed=failed, n_unconverged=capped)
+    traj = SimpleNamespace(
+        n_frames=n,
+        solver=solver,
+        tcp_pos=far,
+        targets=SimpleNamespace(pos=on_target),
+        diagnostics=diag,
+    )
+    ev = SimpleNamespace(collisions=np.arange(n) < touching, max_speed_ratio=speed)
+    notes = _run_warnings(traj, SimpleNamespace(rate=native), ev, rate)
+    assert all("\n" not in note for note in notes)
+    expected = [(failed, "failed"), (capped, "iteration cap"), (touching, "self-collision")]
+    for count, word in expected:
+        said = [note for note in notes if word in note]
+        assert len(said) == (count > 0)
+        if count:
+            assert f"{count} of {n} frames" in said[0]
+    # jm maps the joints: by design it tracks no hand and keeps no speed limit, and is not warned about
+    tracking = solver != "jm"
+    assert any("exceed their limits" in note for note in notes) == (tracking and speed > 1 + 1e-6)
+    hands = [note for note in notes if "hand more than 5 cm" in note]
+    assert len(hands) == 2 * tracking and all(f"{n} of {n} frames (100 %), up to 30.0 cm" in h for h in hands)
+    assert any("--rate 0" in note for note in notes) == (rate == 0 and native < 50)
+
+
+# --- 3. progress -------------------------------------------------------------------------------
+
+
+def test_slsqp_with_finite_differences_reports_every_frame(short_take):
+    from dataclasses import replace
+
+    from hlik.criteria.learned import learn
+    from hlik.problem.placement import placement_from_spec
+    from hlik.retarget import retarget
+    from hlik.robot.model import load_robot
+    from hlik.solvers import get_solver
+    from hlik.solvers.slsqp import SLSQPSettings
+
+    robot = load_robot("armar6")
+    motion = load_motion(short_take).crop(0.0, 0.4)
+    learned = learn(robot)
+    seen: list[int] = []
+    fd = replace(SLSQPSettings(), gradients="fd")
+    where = placement_from_spec("mapped", robot, motion)
+    retarget(motion, robot, get_solver("slsqp", fd, learned, seen.append), where)
+    assert seen == list(range(motion.n_frames))
+
+
+def test_learning_and_reachability_report_progress(short_take, tmp_path):
+    from hlik.criteria.learned import learn
+    from hlik.robot.model import load_robot
+    from hlik.robot.reachability import reachability_map
+
+    robot = load_robot("dual_panda")
+    corpus = tmp_path / "corpus"
+    corpus.mkdir()
+    for name in ("a.xml", "b.xml"):
+        shutil.copy(short_take, corpus / name)
+    calls: list[tuple[int, int]] = []
+    learn(robot, corpus, cache=False, progress=lambda k, n: calls.append((k, n)))
+    assert calls == [(1, 2), (2, 2)]
+    sampled: list[tuple[int, int]] = []
+    reachability_map(robot, cache=False, n_samples=2500, progress=lambda k, n: sampled.append((k, n)))
+    assert sampled == [(1000, 2500), (2000, 2500), (2500, 2500)]
+
+
+# --- 4. startup --------------------------------------------------------------------------------
+
+
+def test_help_imports_no_heavy_module():
+    code = (
+        "import sys\n"
+        "from hlik.cli import app\n"
+        "for args in (['--help'], ['run', '--help']):\n"
+        "    try:\n"
+        "        app(args)\n"
+        "    except SystemExit:\n"
+        "        pass\n"
+        "heavy = ('rerun', 'mink', 'sklearn', 'nlopt', 'mujoco', 'scipy', 'ray')\n"
+        "print(sorted(m for m in sys.modules if m.split('.')[0] in heavy))\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip().splitlines()[-1] == "[]", done.stdout[-2000:]
+
+
+def test_package_attributes_still_import_on_use():
+    import hlik
+
+    assert hlik.load_robot("armar6").name == "armar6"
+    assert set(hlik.__all__) <= set(dir(hlik))
+    with pytest.raises(AttributeError):
+        hlik.no_such_thing  # noqa: B018
+
+
+# --- 5. flags ----------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    "command,flag", [("evaluate", "--json"), ("calibrate", "--toml"), ("run", "--force")]
+)
+def test_on_off_options_show_as_flags(command, flag):
+    result = invoke(command, "--help", env={"COLUMNS": "120"})
+    assert result.exit_code == 0
+    line = next(line for line in result.stdout.splitlines() if flag in line)
+    assert "<bool>" not in line, line
+    one_line_error(invoke(command, f"{flag}=yes", "x"), flag)
+
+
+# --- 6. the summary ----------------------------------------------------------------------------
+
+
+def test_rerun_command_is_one_unbroken_last_line(short_take, tmp_path):
+    deep = tmp_path / ("a-rather-long-folder-name-" * 3) / "and another one with spaces"
+    deep.mkdir(parents=True)
+    out = deep / "recording.rrd"
+    result = invoke(
+        "run", short_take, "--solver", "jm", "--rate", "0", "--placement", "mapped", "--out", out,
+        env={"COLUMNS": "80"},
+    )  # fmt: skip
+    assert result.exit_code == 0, result.output
+    last = result.stdout.strip().splitlines()[-1]
+    assert last == f"open with: rerun '{out}'", last
+    assert len(last) > 80
+
+
+# --- 7. the corpus -----------------------------------------------------------------------------
+
+
+@pytest.fixture
+def corpus(short_take, tmp_path) -> Path:
+    folder = tmp_path / "my corpus"
+    folder.mkdir()
+    shutil.copy(short_take, folder / "one.xml")
+    return folder
+
+
+def test_corpus_from_the_environment_or_hlik_toml(corpus, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.delenv("HLIK_CORPUS", raising=False)
+    assert corpus_setting() == (None, "")
+    (tmp_path / "hlik.toml").write_text('corpus = "my corpus"\n')
+    found, source = corpus_setting()
+    assert found is not None and found.resolve() == corpus.resolve() and source == "corpus in hlik.toml"
+    monkeypatch.setenv("HLIK_CORPUS", str(corpus))
+    assert corpus_setting() == (corpus, "HLIK_CORPUS")
+    monkeypatch.setenv("HLIK_CORPUS", str(tmp_path / "gone"))
+    with pytest.raises(SettingsError, match="gone.*HLIK_CORPUS.*no such corpus folder"):
+        corpus_setting()
+    monkeypatch.delenv("HLIK_CORPUS")
+    (tmp_path / "hlik.toml").write_text("corpus = 3\n")
+    with pytest.raises(SettingsError, match="hlik.toml: corpus must be a folder"):
+        corpus_setting()
+    (tmp_path / "hlik.toml").write_text("corpus = \n")
+    with pytest.raises(SettingsError, match="hlik.toml: cannot read"):
+        corpus_setting()
+
+
+def test_run_says_which_corpus_the_criteria_came_from(corpus, short_take, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    args = ("run", short_take, "--solver", "jm", "--rate", "0", "--placement", "mapped")
+    result = invoke(*args, env={"HLIK_CORPUS": str(corpus), "COLUMNS": "200"})
+    assert result.exit_code == 0, result.output
+    assert f"criteria learned from  {corpus} (1 file, from HLIK_CORPUS)" in result.stdout
+    demo = invoke(*args, env={"HLIK_CORPUS": "", "COLUMNS": "200"})
+    assert demo.exit_code == 0, demo.output  # another corpus, another default name: no --force needed
+    assert "criteria learned from  the bundled demo (demo_pour_wipe.xml)" in demo.stdout
+    missing = invoke(*args, env={"HLIK_CORPUS": str(tmp_path / "none")})
+    one_line_error(missing, "none", "HLIK_CORPUS", "corpus")
