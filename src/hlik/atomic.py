@@ -63,7 +63,8 @@ def atomic_paths(*paths: str | Path) -> Iterator[tuple[Path, ...]]:
             termination.check()
             for written in tmps:
                 _sync(written)  # the data is on disk before any name points at it
-            with pair_lock(targets[0]), _signals_held():
+            # signals held first: one arriving while the lock file is made would leave it behind
+            with _signals_held(), pair_lock(targets[0]):
                 _replace_all(tmps, targets)
             _sync_folders(targets)
         except BaseException as e:
