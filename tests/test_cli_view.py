@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import itertools
 import json
+import os
 import re
 import shutil
 import subprocess
@@ -365,3 +366,41 @@ def test_run_says_which_corpus_the_criteria_came_from(corpus, short_take, tmp_pa
     assert "criteria learned from  the bundled demo (demo_pour_wipe.xml)" in demo.stdout
     missing = invoke(*args, env={"HLIK_CORPUS": str(tmp_path / "none")})
     one_line_error(missing, "none", "HLIK_CORPUS", "corpus")
+
+
+def test_robots_lists_what_the_models_say_and_then_needs_no_model(tmp_path, monkeypatch):
+    """The first listing loads the robots; later ones read the cache (keyed by the robot files'
+    bytes), importing neither MuJoCo nor NumPy; a changed robot file is loaded again."""
+    from hlik.robot import summary
+    from hlik.robot.model import available_robots, load_robot
+
+    monkeypatch.setenv("HLIK_CACHE", str(tmp_path))
+    cold = summary.robot_summaries()
+    for s, name in zip(cold, available_robots(), strict=True):
+        r = load_robot(name)
+        assert (s.name, s.dof, s.extra_joints, s.unlimited) == (
+            r.name,
+            r.dof,
+            r.extra_joints,
+            len(r.unlimited),
+        )
+        assert s.arms == (len(r.arm_joints["left"]), len(r.arm_joints["right"]))
+    assert summary.robot_summaries() == cold and len(list(tmp_path.glob("robots-*.json"))) == 1
+    code = (
+        "import sys\n"
+        "from hlik.cli import app\n"
+        "try:\n"
+        "    app(['robots'])\n"
+        "except SystemExit:\n"
+        "    pass\n"
+        "print(sorted(m for m in ('mujoco', 'numpy', 'rerun', 'scipy') if m in sys.modules))\n"
+    )
+    env = {**os.environ, "HLIK_CACHE": str(tmp_path)}
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60, env=env)
+    assert done.returncode == 0 and "ARMAR-6" in done.stdout, done.stderr
+    assert done.stdout.strip().splitlines()[-1] == "[]", done.stdout[-500:]
+    monkeypatch.setattr(summary, "_key", lambda: "another set of robot files")
+    loads = []
+    real = load_robot
+    monkeypatch.setattr("hlik.robot.model.load_robot", lambda name: loads.append(name) or real(name))
+    assert summary.robot_summaries() == cold and loads == list(available_robots())

@@ -14,7 +14,6 @@ from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any
 
-import numpy as np
 import typer
 from rich.console import Console
 from rich.table import Table
@@ -26,6 +25,8 @@ from hlik.errors import HlikError
 from hlik.paths import corpus_setting, demo_motion_path
 
 if TYPE_CHECKING:  # imported where used: `hlik --help` stays quick
+    import numpy as np
+
     from hlik.human.motion import HumanMotion
     from hlik.metrics import Evaluation
     from hlik.robot.mapping import JointMap
@@ -380,6 +381,8 @@ LOW_RATE = 50.0  # Hz below which --rate 0 is warned about: the criteria's const
 
 def _run_warnings(traj: Trajectory, motion: HumanMotion, ev: Evaluation, rate: float) -> list[str]:
     """One line for each thing the user should know about the result of ``hlik run``."""
+    import numpy as np
+
     from hlik.criteria.functional import position_error
 
     n = traj.n_frames
@@ -420,6 +423,8 @@ LAG = 0.05  # m: a hand this far off its target is reported as lagging
 def _lag_spans(fpos: np.ndarray, times: np.ndarray, shown: int = 3) -> str:
     """The time spans where either hand is more than :data:`LAG` off its target, e.g.
     ``"1.50-3.52 s (left), 4.00-4.20 s (both); 203 frames"``; empty if none."""
+    import numpy as np
+
     off = fpos > LAG  # (T, 2)
     any_off = off.any(axis=1)
     if not any_off.any():
@@ -537,6 +542,8 @@ def _writing(*paths: Path) -> Iterator[None]:
 
 
 def _run_summary(title: str, traj, motion, solve_time: float, rrd: Path, npz: Path, ev) -> Table:
+    import numpy as np
+
     from hlik.criteria.functional import position_error, relative_errors, rotation_angle
 
     fpos = position_error(traj.tcp_pos, traj.targets.pos)
@@ -640,6 +647,8 @@ def learn(
     corpus: CorpusOpt = None,
 ) -> None:
     """Fit (or load from the cache) synergies, the swivel regressor and lambda_R; print what was learned."""
+    import numpy as np
+
     from hlik.criteria.learned import learn as learn_robot
     from hlik.paths import cache_dir
     from hlik.robot.model import available_robots, load_robot
@@ -799,15 +808,14 @@ def _default_takes() -> Path:
 @app.command()
 def robots() -> None:
     """List the bundled robots with their degrees of freedom."""
-    from hlik.robot.model import available_robots, load_robot
+    from hlik.robot.summary import robot_summaries
 
     table = Table("name", "robot", "DoF", "arms", "extra joints", "unlimited")
-    for name in available_robots():
-        r = load_robot(name)
-        arms = " + ".join(str(len(r.arm_joints[s])) for s in ("left", "right"))
-        table.add_row(
-            name, r.title, str(r.dof), arms, ", ".join(r.extra_joints) or "-", str(len(r.unlimited))
-        )
+    with _one_line():
+        summaries = robot_summaries()
+    for r in summaries:
+        arms = " + ".join(map(str, r.arms))
+        table.add_row(r.name, r.title, str(r.dof), arms, ", ".join(r.extra_joints) or "-", str(r.unlimited))
     console.print(table)
 
 
@@ -845,6 +853,8 @@ def calibrate(
     ] = False,
 ) -> None:
     """Derive the MMM -> robot joint mapping (paper Sec. III-A) and print it."""
+    import numpy as np
+
     from hlik.robot.calibrate import calibrate as run_calibration
     from hlik.robot.calibrate import mapping_toml
     from hlik.robot.model import load_robot
