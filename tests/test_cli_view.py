@@ -404,3 +404,27 @@ def test_robots_lists_what_the_models_say_and_then_needs_no_model(tmp_path, monk
     real = load_robot
     monkeypatch.setattr("hlik.robot.model.load_robot", lambda name: loads.append(name) or real(name))
     assert summary.robot_summaries() == cold and loads == list(available_robots())
+
+
+def test_the_printed_evaluate_command_gives_the_runs_scores(tmp_path, takes):
+    """Scenario and corpus change the scores: the summary's ``details:`` command passes them on."""
+    import json
+    import shlex
+
+    from typer.testing import CliRunner
+
+    from hlik.cli import app
+
+    corpus = tmp_path / "corpus"
+    corpus.mkdir()
+    (corpus / takes[0].name).symlink_to(takes[0])
+    out = tmp_path / "x.rrd"
+    args = ["run", str(takes[1]), "--solver", "jm", "--scenario", "relative", "--corpus", str(corpus)]
+    run = CliRunner().invoke(app, [*args, "--out", str(out)])
+    assert run.exit_code == 0, run.output
+    line = next(x for x in run.stdout.splitlines() if x.startswith("details: "))
+    command = shlex.split(line.removeprefix("details: "))
+    assert command[:2] == ["hlik", "evaluate"] and "--corpus" in command and "relative" in command
+    scores = json.loads(CliRunner().invoke(app, [*command[1:], "--json"]).stdout)
+    shown = next(x for x in run.stdout.splitlines() if x.startswith("human likeness"))
+    assert f"m_hl = {scores['m_hl']:.3f}" in shown and f"m_hl,f = {scores['m_hl_f']:.3f}" in shown, shown

@@ -317,7 +317,6 @@ def run(
                 "gradients": gradients,
             }
             write_outputs(npz, rrd, traj, r, layout, ev.curves(), evaluation=ev, info=info)
-    _warn([*notes, *_run_warnings(traj, m, ev, rate)])
     summary = _run_summary(path.stem, traj, m, solve_time, rrd, npz, ev)
     summary.add_row("criteria learned from", _corpus_label(corpus, learned.corpus, corpus_source))
     console.print(summary)
@@ -326,9 +325,14 @@ def run(
         console.print(f"placement optimize (m_hl,f of a short qp run): {scores}")
     console.print(
         f"human likeness m_hl = {ev.m_hl:.3f}, functional m_f = {ev.m_f:.3f} ({scenario}), "
-        f"m_hl,f = {ev.m_hl_f:.3f}, weights and x0: {ev.metric.source}"
+        f"m_hl,f = {ev.m_hl_f:.3f}, weights and x0: {ev.metric.source}",
+        soft_wrap=True,
     )
-    details = ["hlik", "evaluate", str(npz), *(["--metric", str(metric)] if metric is not None else [])]
+    _warn([*notes, *_run_warnings(traj, m, ev, rate)])  # at the end, where they are seen
+    # the same scores again: everything that changed them here is passed on
+    details = ["hlik", "evaluate", str(npz), "--scenario", scenario]
+    details += ["--corpus", str(corpus)] if corpus is not None else []
+    details += ["--metric", str(metric)] if metric is not None else []
     # Commands to copy: each on its own line, never wrapped inside a path.
     console.print(f"details: {shlex.join(details)}", soft_wrap=True)
     console.print(f"open with: rerun {shlex.quote(str(rrd))}", soft_wrap=True)

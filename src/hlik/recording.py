@@ -415,6 +415,7 @@ def _log(
             vectors=[0.3 * shown.rotation[:, 0], 0.5 * shown.rotation[:, 1]],
             colors=[(220, 60, 60), (60, 200, 60)],
             labels=[f"base ({traj.placement.method})", "faces"],
+            show_labels=False,  # on hover: drawn, they overlap the base
         ),
         static=True,
     )
@@ -619,7 +620,14 @@ def _object(rec, entity: str, obj: ObjectMotion, times: np.ndarray, chunk_frames
     )
     rec.log(
         label,
-        rr.Points3D([[0.0, 0.0, 0.0]], radii=0.004, colors=[(90, 90, 90)], labels=[object_label(obj.name)]),
+        # on hover only: held objects sit in the hands, where a drawn label would cover them
+        rr.Points3D(
+            [[0.0, 0.0, 0.0]],
+            radii=0.004,
+            colors=[(90, 90, 90)],
+            labels=[object_label(obj.name)],
+            show_labels=False,
+        ),
         static=True,
     )
 
@@ -684,21 +692,24 @@ def summary(traj: Trajectory, robot: Robot, evaluation: Evaluation | None, info:
         "placement": traj.placement.method,
         **{k: str(v) for k, v in info.items()},
     }
-    lines = [f"### {traj.motion.name} on {robot.name}, {traj.solver}", "", "| | |", "|---|---|"]
-    lines += [f"| {k} | {_cell(v)} |" for k, v in settings.items()]
-    if evaluation is not None:
+    source = traj.motion.source
+    title = Path(source).stem if source else traj.motion.name  # the file, as the CLI names runs
+    lines = [f"### {title} on {robot.name}, {traj.solver}", ""]
+    table = []
+    if evaluation is not None:  # the scores first: what the panel is opened for
         result = evaluation.to_json()
         lines += [
-            "",
             f"**m_hl = {result['m_hl']:.4f}**, m_f = {result['m_f']:.4f}, "
             f"m_hl,f = {result['m_hl_f']:.4f} (scenario {result['scenario']}; "
             f"weights and x0: {_cell(result['metric'])})",
             "",
-            "| criterion | mean h | m |",
-            "|---|---:|---:|",
         ]
+        table = ["", "| criterion | mean h | m |", "|---|---:|---:|"]
         for group in ("metrics", "functional"):
-            lines += [f"| {k} | {v['h']:.4g} | {v['m']:.4f} |" for k, v in result[group].items()]
+            table += [f"| {k} | {v['h']:.4g} | {v['m']:.4f} |" for k, v in result[group].items()]
+    lines += ["| | |", "|---|---|"]
+    lines += [f"| {k} | {_cell(v)} |" for k, v in settings.items()]
+    lines += table
     n = traj.n_frames
     lines += [
         "",
