@@ -49,24 +49,7 @@ def looped(motion: HumanMotion, seconds: float) -> HumanMotion:
     index = np.where(walk < n, walk, 2 * n - 2 - walk)
     speed = 1.0 + 0.05 * np.sin(np.arange(steps) // (n - 1))  # one speed per pass
     times = motion.times[0] + np.concatenate([[0.0], np.cumsum(dt / speed[:-1])])
-    return replace(
-        motion,
-        name=f"{motion.name}_looped",
-        times=times,
-        joints=motion.joints[index],
-        root_position=motion.root_position[index],
-        root_rotation=motion.root_rotation[index],
-        markers={k: v[index] for k, v in motion.markers.items()},
-        objects={
-            k: replace(
-                o,
-                position=o.position[index],
-                rotation=o.rotation[index],
-                markers={m: v[index] for m, v in o.markers.items()},
-            )
-            for k, o in motion.objects.items()
-        },
-    )
+    return replace(motion.frames(index), name=f"{motion.name}_looped", times=times)
 
 
 def _status(key: str) -> float:

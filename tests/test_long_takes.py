@@ -37,23 +37,7 @@ def looped(motion: HumanMotion, frames: int) -> HumanMotion:
     walk = np.arange(frames) % (2 * n - 2)
     index = np.where(walk < n, walk, 2 * n - 2 - walk)
     period = float(np.median(np.diff(motion.times)))
-    return replace(
-        motion,
-        times=motion.times[0] + period * np.arange(frames),
-        joints=motion.joints[index],
-        root_position=motion.root_position[index],
-        root_rotation=motion.root_rotation[index],
-        markers={},
-        objects={
-            k: replace(
-                o,
-                position=o.position[index],
-                rotation=o.rotation[index],
-                markers={m: v[index] for m, v in o.markers.items()},
-            )
-            for k, o in motion.objects.items()
-        },
-    )
+    return replace(motion.frames(index), times=motion.times[0] + period * np.arange(frames), markers={})
 
 
 @pytest.fixture(scope="module")

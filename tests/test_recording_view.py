@@ -26,7 +26,6 @@ from hlik.recording import (
     ASPECT,
     FRAME_TAN,
     _display_placement,
-    _frames,
     joint_groups,
     object_label,
     robot_camera,
@@ -128,7 +127,7 @@ def test_camera_is_in_front_and_frames_both_figures(run, armar6):
     # every human body and robot body (drawn beside it) at every frame lies inside the view pyramid
     human = human_model(traj.motion.height)
     rows = slice(None)
-    human_pos = body_poses(human, qpos_trajectory(human, _frames(traj.motion, rows)))[0][:, 1:]
+    human_pos = body_poses(human, qpos_trajectory(human, traj.motion.frames(rows)))[0][:, 1:]
     shown = _display_placement(traj.placement, "side")
     robot_pos = body_poses(armar6.model, traj.q)[0][:, 1:] @ shown.rotation.T + shown.translation
     for points in (human_pos.reshape(-1, 3), robot_pos.reshape(-1, 3)):

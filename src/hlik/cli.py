@@ -200,15 +200,6 @@ def run(
     metric: MetricOpt = None,
 ) -> None:
     """Retarget a motion to a robot; write a Rerun recording and the trajectory (.npz) beside it."""
-    from rich.progress import (
-        BarColumn,
-        MofNCompleteColumn,
-        Progress,
-        SpinnerColumn,
-        TextColumn,
-        TimeElapsedColumn,
-    )
-
     from hlik.criteria.learned import learn
     from hlik.criteria.unified import load_metric
     from hlik.human.load import load_motion
@@ -264,16 +255,7 @@ def run(
         npz = rrd.with_suffix(".npz")
         inputs = [path, metric, robot, stack, tasks_dir() / f"{stack}.toml"]
         _check_outputs(rrd, npz, inputs, create=out is None, force=force)
-        columns = (
-            SpinnerColumn(),
-            TextColumn("{task.description}", markup=False),
-            BarColumn(),
-            MofNCompleteColumn(),
-            TimeElapsedColumn(),
-        )
-        with Progress(
-            *columns, console=Console(stderr=True), transient=True, disable=not sys.stderr.isatty()
-        ) as progress:
+        with _progress(spinner=True) as progress:
             task = progress.add_task(f"reading {path.name}", total=None)
             m = load_motion(path, rate=rate or None)
 
@@ -680,19 +662,32 @@ def learn(
     console.print(f"cache: {folder}")
 
 
-@contextmanager
-def _counting(description: str) -> Iterator[Callable[[int, int], None]]:
-    """A ``progress(k, n)`` callback drawing a transient bar on stderr while the block runs."""
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+def _progress(spinner: bool = False):
+    """A transient bar on stderr (none when stderr is no terminal): description, bar, k/n, time."""
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        SpinnerColumn,
+        TextColumn,
+        TimeElapsedColumn,
+    )
 
     columns = (TextColumn("{task.description}", markup=False), BarColumn(), MofNCompleteColumn())
-    with Progress(
+    return Progress(
+        *([SpinnerColumn()] if spinner else []),
         *columns,
         TimeElapsedColumn(),
         console=Console(stderr=True),
         transient=True,
         disable=not sys.stderr.isatty(),
-    ) as bar:
+    )
+
+
+@contextmanager
+def _counting(description: str) -> Iterator[Callable[[int, int], None]]:
+    """A ``progress(k, n)`` callback drawing a transient bar on stderr while the block runs."""
+    with _progress() as bar:
         task = bar.add_task(description, total=None)
         yield lambda k, n: bar.update(task, completed=k, total=n)
 
@@ -745,8 +740,6 @@ def study(
     corpus: CorpusOpt = None,
 ) -> None:
     """The paper's study: retarget, correlate the criteria, derive the metric, rank the approaches."""
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
-
     from hlik.robot.model import available_robots
     from hlik.study.approaches import PAPER, load_approaches
     from hlik.study.runner import plan, run_study
@@ -770,15 +763,7 @@ def study(
             f"study: {len(files)} takes x {len(names)} robots x {len(listed)} approaches = "
             f"{n_cells} cells -> {out}/"
         )
-        columns = (
-            TextColumn("{task.description}", markup=False),
-            BarColumn(),
-            MofNCompleteColumn(),
-            TimeElapsedColumn(),
-        )
-        with Progress(
-            *columns, console=Console(stderr=True), transient=True, disable=not sys.stderr.isatty()
-        ) as progress:
+        with _progress() as progress:
             task = progress.add_task("cells", total=n_cells)
             advance = lambda o: progress.update(task, advance=1, description=o.cell.file_name[:48])  # noqa: E731
             corpus = corpus if corpus is not None else corpus_setting()[0]

@@ -32,7 +32,7 @@ import functools
 import json
 import shutil
 from collections.abc import Callable, Iterator, Mapping
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -47,7 +47,7 @@ from hlik.criteria import registry, unified
 from hlik.criteria.functional import position_error, relative_errors, rotation_angle
 from hlik.fk import body_poses
 from hlik.human.kinematics import human_model, qpos_trajectory
-from hlik.human.motion import HumanMotion, ObjectMotion
+from hlik.human.motion import ObjectMotion
 from hlik.metrics import Evaluation
 from hlik.problem.placement import Placement
 from hlik.robot.model import COLLISION_GROUP, SIDES, Robot
@@ -306,7 +306,7 @@ def scene_camera(traj: Trajectory, robot: Robot, layout: str = "side", samples: 
     """
     rows = slice(0, traj.n_frames, max(1, -(-traj.n_frames // samples)))
     human = human_model(traj.motion.height)
-    human_pos, _ = body_poses(human, qpos_trajectory(human, _frames(traj.motion, rows)))
+    human_pos, _ = body_poses(human, qpos_trajectory(human, traj.motion.frames(rows)))
     shown = _display_placement(traj.placement, layout)
     robot_pos = _robot_points(traj, robot, rows) @ shown.rotation.T + shown.translation
     points = np.concatenate(
@@ -396,7 +396,7 @@ def _log(
             rec,
             "/world/human/bodies",
             human,
-            lambda rows: qpos_trajectory(human, _frames(traj.motion, rows)),
+            lambda rows: qpos_trajectory(human, traj.motion.frames(rows)),
             times,
             alpha=200,
         )
@@ -758,17 +758,6 @@ def _index(times: np.ndarray, rows: slice) -> list[rr.TimeColumn]:
         rr.TimeColumn("frame", sequence=np.arange(rows.start, rows.stop)),
         rr.TimeColumn("time", duration=times[rows]),
     ]
-
-
-def _frames(motion: HumanMotion, rows: slice) -> HumanMotion:
-    """The frames ``rows`` of ``motion``, as far as :func:`qpos_trajectory` reads it (no copies)."""
-    return replace(
-        motion,
-        times=motion.times[rows],
-        joints=motion.joints[rows],
-        root_position=motion.root_position[rows],
-        root_rotation=motion.root_rotation[rows],
-    )
 
 
 def _pose_columns(pos: np.ndarray, rot: np.ndarray):

@@ -139,7 +139,7 @@ class HumanMotion:
         """The frames with ``start <= t - t0 <= stop`` (seconds from the first frame)."""
         t = self.times - self.times[0]
         keep = (t >= start - 1e-9) & (t <= stop + 1e-9)
-        return self._take(keep)
+        return self.frames(keep)
 
     def resample(self, rate: float) -> HumanMotion:
         """Resample to ``rate`` Hz: cubic splines for angles and positions, rotation splines (C²) for
@@ -212,7 +212,9 @@ class HumanMotion:
             objects=objects,
         )
 
-    def _take(self, keep: np.ndarray) -> HumanMotion:
+    def frames(self, keep: np.ndarray | slice) -> HumanMotion:
+        """The frames ``keep`` selects: a (T,) boolean mask, integer indices (in any order, with
+        repeats) or a slice; every stream, objects and markers included (a slice gives views)."""
         return replace(
             self,
             times=self.times[keep],
