@@ -110,7 +110,7 @@ def main() -> None:
     parser.add_argument("--takes", type=int, default=8, help="use the first N takes")
     parser.add_argument("--set", action="append", default=[], help="override a setting: name=value")
     args = parser.parse_args()
-    overrides = {k: float(v) for k, v in (item.split("=", 1) for item in args.set)}
+    overrides = {k: int(v) if v.isdigit() else float(v) for k, v in (item.split("=", 1) for item in args.set)}
     takes = sorted((DATA / "kit_bimanual").glob("*.xml"))[: args.takes]
     if not takes:
         raise SystemExit(f"{DATA / 'kit_bimanual'}: no takes (set HLIK_DATA)")

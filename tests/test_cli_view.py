@@ -192,20 +192,25 @@ def test_low_native_rate_and_limits_are_warned_as_the_scores_say(tmp_path):
     rate=st.sampled_from([0.0, 100.0]),
     native=st.floats(1.0, 200.0),
     solver=st.sampled_from(["jm", "qp"]),
+    scenario=st.sampled_from(["pose", "relative"]),
 )
-def test_solver_and_body_warnings_count_frames(n, failed, capped, touching, speed, rate, native, solver):
+def test_solver_and_body_warnings_count_frames(
+    n, failed, capped, touching, speed, rate, native, solver, scenario
+):
     failed, capped, touching = min(failed, n), min(capped, n - min(failed, n)), min(touching, n)
-    on_target = np.zeros((n, 2, 3))
-    far = on_target + [0.0, 0.0, 0.3]  # every frame 30 cm off
+    on_target, rot = np.zeros((n, 2, 3)), np.broadcast_to(np.eye(3), (n, 2, 3, 3))
+    far = on_target.copy()
+    far[:, 1, 2] = 0.3  # the right hand 30 cm off in every frame, the left on target
     diag = SimpleNamespace(n_failed=failed, n_unconverged=capped)
     traj = SimpleNamespace(
         n_frames=n,
         solver=solver,
         tcp_pos=far,
-        targets=SimpleNamespace(pos=on_target),
+        tcp_rot=rot,
+        targets=SimpleNamespace(pos=on_target, rot=rot),
         diagnostics=diag,
     )
-    ev = SimpleNamespace(collisions=np.arange(n) < touching, max_speed_ratio=speed)
+    ev = SimpleNamespace(collisions=np.arange(n) < touching, max_speed_ratio=speed, scenario=scenario)
     notes = _run_warnings(traj, SimpleNamespace(rate=native), ev, rate)
     assert all("\n" not in note for note in notes)
     expected = [(failed, "failed"), (capped, "iteration cap"), (touching, "self-collision")]
@@ -217,8 +222,13 @@ def test_solver_and_body_warnings_count_frames(n, failed, capped, touching, spee
     # jm maps the joints: by design it tracks no hand and keeps no speed limit, and is not warned about
     tracking = solver != "jm"
     assert any("exceed their limits" in note for note in notes) == (tracking and speed > 1 + 1e-6)
+    # pose: each hand against its target; relative: the hands against each other (paper Eq. 3)
     hands = [note for note in notes if "hand more than 5 cm" in note]
-    assert len(hands) == 2 * tracking and all(f"{n} of {n} frames (100 %), up to 30.0 cm" in h for h in hands)
+    relative = [note for note in notes if "relative position is more than 5 cm" in note]
+    assert len(hands) == (tracking and scenario == "pose")
+    assert len(relative) == (tracking and scenario == "relative")
+    assert all(f"{n} of {n} frames (100 %), up to 30.0 cm" in h for h in hands + relative)
+    assert all(h.startswith("right hand") for h in hands)
     assert any("--rate 0" in note for note in notes) == (rate == 0 and native < 50)
 
 

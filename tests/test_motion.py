@@ -85,12 +85,23 @@ def test_resample_round_trip(takes):
     up = m.resample(100.0)
     assert np.allclose(np.diff(up.times), 0.01)
     assert up.duration == pytest.approx(m.duration, abs=0.01)
-    # a cubic spline passes through its knots: every 10th frame is a recorded frame
+    # an interpolating spline passes through its knots: every 10th frame is a recorded frame
     assert np.allclose(up.joints[::10], m.joints[: len(up.joints[::10])], atol=1e-9)
     assert np.allclose(up.root_rotation[::10], m.root_rotation[: len(up.times[::10])], atol=1e-9)
     assert np.allclose(up.markers["LSHO"][::10], m.markers["LSHO"][: len(up.times[::10])], atol=1e-9)
     name = next(iter(m.objects))
     assert up.objects[name].position.shape == (up.n_frames, 3)
+
+
+def test_resampled_jerk_has_no_steps(takes):
+    # 10 Hz takes at 100 Hz: a cubic's jerk jumps at every recorded frame by about its own size
+    # (MJE scores that as a barcode); the quintic's changes between frames by under half its maximum
+    for path in takes:
+        m = load_motion(path)
+        q = m.resample(100.0).joints[:, np.ptp(m.joints, axis=0) > 0.05]
+        jerk = np.diff(q, 3, axis=0)
+        step = np.abs(np.diff(jerk, axis=0)).max(axis=0)
+        assert np.all(step < 0.5 * np.abs(jerk).max(axis=0)), path.name
 
 
 def test_mirror_is_reflection(takes):

@@ -369,7 +369,7 @@ def _run_warnings(traj: Trajectory, motion: HumanMotion, ev: Evaluation, rate: f
     """One line for each thing the user should know about the result of ``hlik run``."""
     import numpy as np
 
-    from hlik.criteria.functional import position_error
+    from hlik.criteria.functional import position_error, relative_errors
 
     n = traj.n_frames
     share = lambda k: f"{k} of {n} frames ({100 * k / n:.0f} %)"  # noqa: E731
@@ -377,10 +377,18 @@ def _run_warnings(traj: Trajectory, motion: HumanMotion, ev: Evaluation, rate: f
     # jm maps the joint angles: by design it neither tracks the hands nor keeps the speed limits
     # (the summary says how far off it is); warning on every jm run would bury the real warnings.
     tracking = traj.solver != "jm"
+    if ev.scenario == "relative":  # the hands follow their relative pose, not the human's hands
+        gap = relative_errors(traj.tcp_pos, traj.tcp_rot, traj.targets.pos, traj.targets.rot)[0]
+        off = int(np.count_nonzero(gap > LAG))
+        if tracking and off > OFF_SHARE * n:
+            notes.append(
+                f"the hands' relative position is more than {100 * LAG:.0f} cm off the human's in "
+                f"{share(off)}, up to {100 * gap.max():.1f} cm (fPOS_off)"
+            )
     fpos = position_error(traj.tcp_pos, traj.targets.pos)  # (T, 2) m
     for i, side in enumerate(("left", "right")):
         off = int(np.count_nonzero(fpos[:, i] > LAG))
-        if tracking and off > OFF_SHARE * n:
+        if tracking and ev.scenario == "pose" and off > OFF_SHARE * n:
             notes.append(
                 f"{side} hand more than {100 * LAG:.0f} cm off its target in {share(off)}, "
                 f"up to {100 * fpos[:, i].max():.1f} cm (out of reach, or too fast for the speed limits)"
@@ -564,7 +572,7 @@ def _run_summary(title: str, traj, motion, solve_time: float, rrd: Path, npz: Pa
         else f"max joint speed {speed:.2f} x its limit"
     )
     table.add_row("body", f"{int(np.count_nonzero(ev.collisions))} frames in self-collision; {speeds}")
-    lag = _lag_spans(fpos, traj.times)
+    lag = _lag_spans(fpos, traj.times) if ev.scenario == "pose" else ""  # relative: no hand targets
     if lag:
         reason = (
             "jm maps the joints and does not track the hands"

@@ -34,8 +34,9 @@ from hlik.robot.reachability import model_key
 RATE = 100.0
 TRIM = 1.0  # s dropped at each end of a recording
 # 4: first-order synergies over the joints the mapping moves, Psi_human on x-z-y hand angles,
-# root rotations resampled by C2 splines; 5: entries carry their key and a checksum
-CACHE_VERSION = "learned/5"
+# root rotations resampled by C2 splines; 5: entries carry their key and a checksum; 6: angles and
+# positions resampled by quintic splines
+CACHE_VERSION = "learned/6"
 
 
 @dataclass(frozen=True, eq=False)
