@@ -145,8 +145,13 @@ def swivel_angle_and_weight(
     shoulder: np.ndarray, elbow: np.ndarray, wrist: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
     """:func:`swivel_angle` and :func:`swivel_weight` (each (..., 2)) from one pass."""
-    psi_raw, singular, *_, eps2, _, sigma, _ = _swivel_parts(shoulder, elbow, wrist)
-    b = np.asarray(elbow, float) - np.asarray(shoulder, float)
+    parts = _swivel_parts(shoulder, elbow, wrist)
+    return _angle_and_weight(parts, np.asarray(elbow, float) - np.asarray(shoulder, float))
+
+
+def _angle_and_weight(parts: tuple, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Ψ and the weight from :func:`_swivel_parts` and the upper arm ``b`` (..., 2, 3)."""
+    psi_raw, singular, *_, eps2, _, sigma, _ = parts
     with np.errstate(invalid="ignore", divide="ignore"):
         s_elbow2 = eps2 / np.einsum("...i,...i->...", b, b)
     fade4 = _FADE**4
@@ -163,7 +168,12 @@ def swivel_gradient(
     atan2(Y, X); then dΨ/db = (X t - Y r) / (X² + Y²) and, as n turns with a,
     dΨ/da = ((n·ẑ)/‖ẑ - (n·ẑ) n‖ t + Z (Y r - X t) / (X² + Y²)) / ‖a‖.
     """
-    _, singular, n, r, t, x, y, z, eps2, c, sigma, a_norm = _swivel_parts(shoulder, elbow, wrist)
+    return _gradient_from_parts(_swivel_parts(shoulder, elbow, wrist))
+
+
+def _gradient_from_parts(parts: tuple) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`swivel_gradient` from :func:`_swivel_parts`."""
+    _, singular, n, r, t, x, y, z, eps2, c, sigma, a_norm = parts
     with np.errstate(invalid="ignore", divide="ignore"):
         g_b = (x[..., None] * t - y[..., None] * r) / eps2[..., None]
         g_a = (c / sigma)[..., None] * t + z[..., None] * (y[..., None] * r - x[..., None] * t) / eps2[
@@ -186,7 +196,11 @@ def swivel_jacobian(state: RobotState, cap: float = 20.0) -> np.ndarray:
         raise ValueError("swivel_jacobian needs a RobotState with Jacobians (jacobians=True)")
     grads = swivel_gradient(state.shoulder, state.elbow, state.wrist)
     jac = sum(np.einsum("fak,fakn->fan", g, state.jac[:, :, i, :3, :]) for i, g in enumerate(grads))
-    jac = np.nan_to_num(jac, nan=0.0, posinf=0.0, neginf=0.0)
+    return _capped(np.nan_to_num(jac, nan=0.0, posinf=0.0, neginf=0.0), cap)
+
+
+def _capped(jac: np.ndarray, cap: float) -> np.ndarray:
+    """Each row of ``jac`` (..., n) scaled down to norm ``cap`` if it is longer."""
     norm = np.linalg.norm(jac, axis=-1, keepdims=True)
     return jac * np.minimum(1.0, cap / np.maximum(norm, 1e-300))
 
@@ -334,36 +348,65 @@ def prediction_jacobian(predictor: SwivelPredictor, state: RobotState, eps: floa
     relative to the shoulder and in a small world-frame rotation of the TCP (12 evaluations of the
     regressor, one vectorised call, no kinematics), chained through the site Jacobians. The
     differences are wrapped, so Ψ's 2π cut does not show."""
+    return prediction_and_jacobian(predictor, state, eps)[1]
+
+
+def prediction_and_jacobian(
+    predictor: SwivelPredictor, state: RobotState, eps: float = _EPS
+) -> tuple[np.ndarray, np.ndarray]:
+    """Ψ_human (F, 2) and :func:`prediction_jacobian` (F, 2, n), from one call of the regressor."""
     if state.jac is None:
         raise ValueError("prediction_jacobian needs a RobotState with Jacobians (jacobians=True)")
     step = eps * _AXES[:, None, None, :]  # (6, 1, 1, 3)
     n = len(state.q)
     # world-frame turns, left-multiplied: the angular rows of the site Jacobian are world-frame
     turns = Rotation.from_rotvec(eps * _AXES).as_matrix()[:, None, None]  # (6, 1, 1, 3, 3)
-    pos = np.concatenate([state.tcp[None] + step, np.broadcast_to(state.tcp, (6, n, 2, 3))])
-    rot = np.concatenate([np.broadcast_to(state.tcp_rot, (6, n, 2, 3, 3)), turns @ state.tcp_rot[None]])
-    psi = predictor.predict(np.broadcast_to(state.shoulder, pos.shape), pos, rot)  # (12, F, 2)
-    d = wrap(psi[[0, 1, 2, 6, 7, 8]] - psi[[3, 4, 5, 9, 10, 11]]) / (2 * eps)  # (6, F, 2)
+    # row 0 the configuration itself, then 6 moves and 6 turns of the TCP
+    pos = np.concatenate([state.tcp[None], state.tcp[None] + step, np.broadcast_to(state.tcp, (6, n, 2, 3))])
+    rot = np.concatenate(
+        [state.tcp_rot[None], np.broadcast_to(state.tcp_rot, (6, n, 2, 3, 3)), turns @ state.tcp_rot[None]]
+    )
+    psi = predictor.predict(np.broadcast_to(state.shoulder, pos.shape), pos, rot)  # (13, F, 2)
+    d = wrap(psi[[1, 2, 3, 7, 8, 9]] - psi[[4, 5, 6, 10, 11, 12]]) / (2 * eps)  # (6, F, 2)
     jac = state.jac
     rel = jac[:, :, 3, :3, :] - jac[:, :, 0, :3, :]  # TCP relative to the shoulder
-    return np.einsum("kfa,fakn->fan", d[:3], rel) + np.einsum("kfa,fakn->fan", d[3:], jac[:, :, 3, 3:, :])
+    d_psi = np.einsum("kfa,fakn->fan", d[:3], rel) + np.einsum("kfa,fakn->fan", d[3:], jac[:, :, 3, 3:, :])
+    return psi[0], d_psi
 
 
 def weight_jacobian(state: RobotState, eps: float = _EPS) -> np.ndarray:
     """d swivel_weight / dq (F, 2, n): central differences in the wrist and elbow positions
     relative to the shoulder (it depends on nothing else), chained through the site Jacobians."""
+    return swivel_parts_and_jacobians(state, eps)[2]
+
+
+def swivel_parts_and_jacobians(
+    state: RobotState, eps: float = _EPS
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Ψ (F, 2), :func:`swivel_weight` (F, 2), :func:`weight_jacobian` (F, 2, n) and the uncapped
+    dΨ/dq (F, 2, n) of ``state``, from one vectorised pass over the arm geometry (13 rows: the
+    configuration, then the wrist and the elbow moved by ±eps along each axis)."""
     if state.jac is None:
         raise ValueError("weight_jacobian needs a RobotState with Jacobians (jacobians=True)")
     step = eps * _AXES[:, None, None, :]  # (6, 1, 1, 3)
     n = len(state.q)
-    wrist = np.concatenate([state.wrist[None] + step, np.broadcast_to(state.wrist, (6, n, 2, 3))])
-    elbow = np.concatenate([np.broadcast_to(state.elbow, (6, n, 2, 3)), state.elbow[None] + step])
-    w = swivel_weight(np.broadcast_to(state.shoulder, wrist.shape), elbow, wrist)  # (12, F, 2)
-    d = (w[[0, 1, 2, 6, 7, 8]] - w[[3, 4, 5, 9, 10, 11]]) / (2 * eps)  # (6, F, 2): d/da, d/db
+    wrist = np.concatenate(
+        [state.wrist[None], state.wrist[None] + step, np.broadcast_to(state.wrist, (6, n, 2, 3))]
+    )
+    elbow = np.concatenate(
+        [state.elbow[None], np.broadcast_to(state.elbow, (6, n, 2, 3)), state.elbow[None] + step]
+    )
+    shoulder = np.broadcast_to(state.shoulder, wrist.shape)
+    parts = _swivel_parts(shoulder, elbow, wrist)
+    psi, w = _angle_and_weight(parts, elbow - shoulder)  # (13, F, 2)
+    d = (w[[1, 2, 3, 7, 8, 9]] - w[[4, 5, 6, 10, 11, 12]]) / (2 * eps)  # (6, F, 2): d/da, d/db
     jac = state.jac
     d_a = jac[:, :, 2, :3, :] - jac[:, :, 0, :3, :]
     d_b = jac[:, :, 1, :3, :] - jac[:, :, 0, :3, :]
-    return np.einsum("kfa,fakn->fan", d[:3], d_a) + np.einsum("kfa,fakn->fan", d[3:], d_b)
+    d_weight = np.einsum("kfa,fakn->fan", d[:3], d_a) + np.einsum("kfa,fakn->fan", d[3:], d_b)
+    grads = _gradient_from_parts(tuple(p[0] for p in parts))
+    d_psi = sum(np.einsum("fak,fakn->fan", g, jac[:, :, i, :3, :]) for i, g in enumerate(grads))
+    return psi[0], w[0], d_weight, np.nan_to_num(d_psi, nan=0.0, posinf=0.0, neginf=0.0)
 
 
 # --- the criterion ---------------------------------------------------------------------------
@@ -428,15 +471,19 @@ class EEA(Criterion):
     def cost_gradient(self, e):
         return np.sign(e) / e.shape[-1]
 
-    def target_jacobian(self, state: RobotState, sample: object, psi: np.ndarray) -> np.ndarray:
-        """d target / dq (F, 2, n)."""
-        return prediction_jacobian(self.swivel, state)
+    def target_and_jacobian(
+        self, state: RobotState, sample: object, psi: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The target (F, 2) and its derivative d target / dq (F, 2, n)."""
+        return prediction_and_jacobian(self.swivel, state)
 
     def gradient(self, state, sample):
-        psi, weight = swivel_angle_and_weight(state.shoulder, state.elbow, state.wrist)
-        r = np.nan_to_num(eea_residual(psi, self.target(state, sample, psi)))
-        d_psi = swivel_jacobian(state) - self.target_jacobian(state, sample, psi)
-        jac = weight_jacobian(state) * r[..., None] + weight[..., None] * d_psi / np.pi  # (1, 2, n)
+        # one pass each over the arm geometry and the regressor (13 rows): SLSQP calls this per evaluation
+        psi, weight, d_weight, d_swivel = swivel_parts_and_jacobians(state)
+        target, d_target = self.target_and_jacobian(state, sample, psi)
+        r = np.nan_to_num(eea_residual(psi, target))
+        d_psi = _capped(d_swivel, 20.0) - d_target
+        jac = d_weight * r[..., None] + weight[..., None] * d_psi / np.pi  # (1, 2, n)
         h, dh_de = self.metric((weight * r)[0])
         g = dh_de @ jac[0]
         return h, g * min(1.0, GRADIENT_CAP / max(float(np.linalg.norm(g)), 1e-300))
@@ -451,7 +498,8 @@ class EEA_r(EEA):  # noqa: N801 - the paper's name
     def target(self, state, sample, psi):
         return eea_r_target(psi, super().target(state, sample, psi), sample.psi_mmm)
 
-    def target_jacobian(self, state, sample, psi):
-        human = super().target(state, sample, psi)
-        moving = eea_r_target(psi, human, sample.psi_mmm) == human  # the recorded Ψ_MMM does not move
-        return np.where(moving[..., None], super().target_jacobian(state, sample, psi), 0.0)
+    def target_and_jacobian(self, state, sample, psi):
+        human, d_human = super().target_and_jacobian(state, sample, psi)
+        target = eea_r_target(psi, human, sample.psi_mmm)
+        moving = target == human  # the recorded Ψ_MMM does not move
+        return target, np.where(moving[..., None], d_human, 0.0)
