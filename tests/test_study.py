@@ -167,6 +167,23 @@ def test_cells_of_other_lengths_or_rates_are_not_reused():
     assert len(names) == 3 * len(TINY)
 
 
+def test_a_take_and_robot_are_placed_once_for_all_their_approaches(tmp_path, monkeypatch):
+    from hlik.study import runner
+    from hlik.study.dataset import run_cell
+
+    calls = []
+    real = runner.placement_from_spec
+    monkeypatch.setattr(runner, "placement_from_spec", lambda *a: calls.append(a[0]) or real(*a))
+    runner._scene.cache_clear()
+    cells = plan([demo_motion_path()], ["armar6"], TINY, 0.2)
+    outcomes = run_cells(cells, tmp_path, workers=1)
+    assert not any(o.error for o in outcomes) and calls == ["reach"]
+    # the shared placement is the one each cell would have found alone
+    robot, learned = runner._robot("armar6")
+    alone = run_cell(cells[1], robot, learned)
+    assert alone.column("h_fPOS").equals(pq.read_table(tmp_path / cells[1].file_name).column("h_fPOS"))
+
+
 def test_a_failing_cell_is_listed_not_fatal(tmp_path):
     bad = tmp_path / "broken.xml"
     bad.write_text("<MMM><Motion name='x'>")

@@ -23,8 +23,9 @@ from hlik.atomic import atomic_path
 from hlik.criteria.functional import position_error
 from hlik.criteria.learned import Learned
 from hlik.human.load import load_motion
+from hlik.human.motion import HumanMotion
 from hlik.metrics import evaluate
-from hlik.problem.placement import placement_from_spec
+from hlik.problem.placement import Placement, placement_from_spec
 from hlik.retarget import retarget
 from hlik.robot.model import Robot
 from hlik.solvers import get_solver
@@ -55,15 +56,33 @@ class Cell:
         return f"{self.take.stem}__{self.robot}__{self.approach.key}__{span}s{rate}.parquet"
 
 
-def run_cell(cell: Cell, robot: Robot, learned: Learned) -> pa.Table:
-    """Retarget and evaluate one cell; its per-frame table (see the module docstring)."""
+def cell_motion(take: Path, seconds: float | None, rate: float) -> HumanMotion:
+    """A cell's motion: ``take`` resampled to ``rate`` Hz, ``seconds`` of it after the first second
+    (``None``: all of it)."""
+    motion = load_motion(take, rate=rate)
+    if seconds is not None:
+        motion = motion.crop(min(SKIP, motion.duration / 2), min(SKIP + seconds, motion.duration))
+    return motion
+
+
+def run_cell(
+    cell: Cell,
+    robot: Robot,
+    learned: Learned,
+    motion: HumanMotion | None = None,
+    placement: Placement | None = None,
+) -> pa.Table:
+    """Retarget and evaluate one cell; its per-frame table (see the module docstring).
+
+    ``motion`` and ``placement``: the cell's (:func:`cell_motion`; the robot's own placement rule),
+    when the caller already has them (every approach of a take and robot shares both).
+    """
     a = cell.approach
-    motion = load_motion(cell.take, rate=cell.rate)
-    if cell.seconds is not None:
-        motion = motion.crop(min(SKIP, motion.duration / 2), min(SKIP + cell.seconds, motion.duration))
+    motion = motion if motion is not None else cell_motion(cell.take, cell.seconds, cell.rate)
     stack = load_stack(a.stack).with_criteria(a.criteria)
     settings = None if a.solver == "jm" else stack.settings(a.solver)
-    placement = placement_from_spec(robot.placement, robot, motion)
+    if placement is None:
+        placement = placement_from_spec(robot.placement, robot, motion)
     start = time.process_time()
     traj = retarget(motion, robot, get_solver(a.solver, settings, learned), placement)
     cpu = time.process_time() - start

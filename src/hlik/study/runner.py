@@ -15,11 +15,12 @@ from hlik.atomic import atomic_path
 from hlik.criteria.learned import learn
 from hlik.criteria.unified import Metric
 from hlik.errors import HlikError
+from hlik.problem.placement import placement_from_spec
 from hlik.robot.model import load_robot
 from hlik.robot.reachability import reachability_map
 from hlik.study.analysis import Correlation, Ranking, correlate, correlation_frames, derive_metric, rank
 from hlik.study.approaches import Approach
-from hlik.study.dataset import Cell, read_dataset, run_cell, write_cell
+from hlik.study.dataset import Cell, cell_motion, read_dataset, run_cell, write_cell
 from hlik.study.report import write_report
 
 
@@ -41,12 +42,22 @@ def _robot(name: str, corpus: Path | None = None):
     return robot, learn(robot, corpus)
 
 
+@functools.lru_cache(maxsize=4)
+def _scene(take: Path, seconds: float | None, rate: float, robot_name: str, corpus: Path | None = None):
+    # per process: the motion and the placement every approach of a take and robot shares (the
+    # placement by reachability costs 1.3-1.5 s, more than most cells); plan() groups the cells so
+    robot = _robot(robot_name, corpus)[0]
+    motion = cell_motion(take, seconds, rate)
+    return motion, placement_from_spec(robot.placement, robot, motion)
+
+
 def solve_cell(cell: Cell, folder: Path) -> CellOutcome:
     """Run one cell and write its file into ``folder``; any error becomes the outcome's message."""
     start = time.process_time()
     try:
         robot, learned = _robot(cell.robot, cell.corpus)
-        path = write_cell(run_cell(cell, robot, learned), folder / cell.file_name)
+        motion, placement = _scene(cell.take, cell.seconds, cell.rate, cell.robot, cell.corpus)
+        path = write_cell(run_cell(cell, robot, learned, motion, placement), folder / cell.file_name)
         return CellOutcome(cell, path, None, time.process_time() - start)
     except Exception as e:  # noqa: BLE001 - a study outlives one bad cell; the message is reported
         line = f"{type(e).__name__}: {e}".splitlines()[0]
