@@ -4,12 +4,14 @@ then the analysis and the report. A failed cell is listed, never fatal."""
 from __future__ import annotations
 
 import functools
+import logging
 import os
 import time
 import traceback
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from hlik.atomic import atomic_path
 from hlik.criteria.learned import learn
@@ -136,15 +138,12 @@ def _ray(workers: int | None, address: str | None):
     if not ray.is_initialized():
         src = str(Path(__file__).resolve().parents[2])  # workers import hlik from the same checkout
         env = {"env_vars": {"PYTHONPATH": os.pathsep.join([src, os.environ.get("PYTHONPATH", "")])}}
+        # hlik prints its own progress; Ray's start-up INFO and WARNING lines would break the bar
+        quiet: dict[str, Any] = {"runtime_env": env, "log_to_driver": False, "logging_level": logging.ERROR}
         if address:
-            ray.init(address=address, runtime_env=env, log_to_driver=False)
+            ray.init(address=address, **quiet)
         else:
-            ray.init(
-                num_cpus=workers or os.cpu_count(),
-                runtime_env=env,
-                log_to_driver=False,
-                include_dashboard=False,
-            )
+            ray.init(num_cpus=workers or os.cpu_count(), include_dashboard=False, **quiet)
     return ray
 
 
