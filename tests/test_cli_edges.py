@@ -559,10 +559,15 @@ def test_an_interrupt_between_the_renames_waits_for_the_second(tmp_path, monkeyp
             signal.raise_signal(signal.SIGINT)
 
     monkeypatch.setattr(atomic.os, "replace", replace_then_interrupt)
+    # Python's own Ctrl-C handler, whatever the runner left (a shell's background job ignores SIGINT)
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
     pair = (tmp_path / "x.npz", tmp_path / "x.rrd")
-    with pytest.raises(KeyboardInterrupt), atomic_paths(*pair) as tmps:
-        for tmp in tmps:
-            tmp.write_text("new")
+    try:
+        with pytest.raises(KeyboardInterrupt), atomic_paths(*pair) as tmps:
+            for tmp in tmps:
+                tmp.write_text("new")
+    finally:
+        signal.signal(signal.SIGINT, previous)
     assert calls == list(pair) and files(tmp_path) == ["x.npz", "x.rrd"]
 
 
