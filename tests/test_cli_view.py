@@ -229,7 +229,31 @@ def test_solver_and_body_warnings_count_frames(
     assert len(relative) == (tracking and scenario == "relative")
     assert all(f"{n} of {n} frames (100 %), up to 30.0 cm" in h for h in hands + relative)
     assert all(h.startswith("right hand") for h in hands)
+    assert not any("turned more than" in note for note in notes)  # both hands as their targets turn
     assert any("--rate 0" in note for note in notes) == (rate == 0 and native < 50)
+
+
+def test_a_hand_turned_away_from_its_target_is_warned_about():
+    n = 40
+    pos, rot = np.zeros((n, 2, 3)), np.broadcast_to(np.eye(3), (n, 2, 3, 3))
+    turned = rot.copy()
+    turned[: n // 2, 0] = [[1, 0, 0], [0, 0, -1], [0, 1, 0]]  # left hand 90° about x, half the frames
+    traj = SimpleNamespace(
+        n_frames=n,
+        solver="slsqp",
+        tcp_pos=pos,
+        tcp_rot=turned,
+        targets=SimpleNamespace(pos=pos, rot=rot),
+        diagnostics=SimpleNamespace(n_failed=0, n_unconverged=0),
+    )
+    for scenario in ("pose", "relative"):
+        ev = SimpleNamespace(collisions=np.zeros(n, bool), max_speed_ratio=1.0, scenario=scenario)
+        notes = [
+            note for note in _run_warnings(traj, SimpleNamespace(rate=100.0), ev, 100.0) if "turned" in note
+        ]
+        # relative runs follow the other hand, not the human's hand orientations
+        expected = ["left hand turned more than 30° from its target in 20 of 40 frames (50 %), up to 90°"]
+        assert [note.split(" (out of")[0] for note in notes] == (expected if scenario == "pose" else [])
 
 
 # --- 3. progress -------------------------------------------------------------------------------

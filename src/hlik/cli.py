@@ -363,13 +363,14 @@ def _corpus_label(corpus: Path | None, files: Sequence[str], source: str = "") -
 
 OFF_SHARE = 0.10  # a hand further than LAG from its target in more frames than this is warned about
 LOW_RATE = 50.0  # Hz below which --rate 0 is warned about: the criteria's constants assume 100 Hz
+TURNED = 30.0  # degrees: a hand turned this far from its target's orientation is warned about
 
 
 def _run_warnings(traj: Trajectory, motion: HumanMotion, ev: Evaluation, rate: float) -> list[str]:
     """One line for each thing the user should know about the result of ``hlik run``."""
     import numpy as np
 
-    from hlik.criteria.functional import position_error, relative_errors
+    from hlik.criteria.functional import position_error, relative_errors, rotation_angle
 
     n = traj.n_frames
     share = lambda k: f"{k} of {n} frames ({100 * k / n:.0f} %)"  # noqa: E731
@@ -392,6 +393,14 @@ def _run_warnings(traj: Trajectory, motion: HumanMotion, ev: Evaluation, rate: f
             notes.append(
                 f"{side} hand more than {100 * LAG:.0f} cm off its target in {share(off)}, "
                 f"up to {100 * fpos[:, i].max():.1f} cm (out of reach, or too fast for the speed limits)"
+            )
+    fori = np.degrees(rotation_angle(traj.tcp_rot, traj.targets.rot))  # (T, 2)
+    for i, side in enumerate(("left", "right")):
+        off = int(np.count_nonzero(fori[:, i] > TURNED))
+        if tracking and ev.scenario == "pose" and off > OFF_SHARE * n:
+            notes.append(
+                f"{side} hand turned more than {TURNED:.0f}° from its target in {share(off)}, up to "
+                f"{fori[:, i].max():.0f}° (out of reach, or given up for the criteria' weight)"
             )
     if rate == 0 and motion.rate < LOW_RATE:
         notes.append(
