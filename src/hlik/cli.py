@@ -400,7 +400,7 @@ def _run_warnings(traj: Trajectory, motion: HumanMotion, ev: Evaluation, rate: f
         if tracking and ev.scenario == "pose" and off > OFF_SHARE * n:
             notes.append(
                 f"{side} hand turned more than {TURNED:.0f}° from its target in {share(off)}, up to "
-                f"{fori[:, i].max():.0f}° (out of reach, or given up for the criteria' weight)"
+                f"{fori[:, i].max():.0f}° (out of reach, or traded for the criteria)"
             )
     if rate == 0 and motion.rate < LOW_RATE:
         notes.append(
