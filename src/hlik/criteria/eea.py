@@ -56,9 +56,10 @@ EULER = "xzy"  # extrinsic sequence of the hand orientation angles (module docst
 _UP = np.array([0.0, 0.0, 1.0])
 _MIRROR = np.array([-1.0, 1.0, 1.0])  # x -> -x
 _SIDE_SIGN = np.array([-1.0, 1.0])  # left Ψ = -Ψ_raw, right Ψ = Ψ_raw
-# bound on |dh_EEA/dq| (rad^-1): swivel_jacobian's 20 rad/rad over π (the paper caps the elevation
-# gradients, Sec. IV-A); the gradient grows without bound near the singularities
-GRADIENT_CAP = 20.0 / np.pi
+# bound on each arm's |dΨ/dq| (rad/rad) and on |dh_EEA/dq| (rad^-1, the same over π): the paper caps
+# the elevation gradients (Sec. IV-A); they grow without bound near the singularities
+SWIVEL_CAP = 20.0
+GRADIENT_CAP = SWIVEL_CAP / np.pi
 
 # The printed Zanchettin coefficients (RAM 2013, Eq. 3), in the terms they were printed in.
 _PUBLISHED: dict[str, Any] = {
@@ -186,7 +187,7 @@ def _gradient_from_parts(parts: tuple) -> tuple[np.ndarray, np.ndarray, np.ndarr
     return -g_a - g_b, g_b, g_a
 
 
-def swivel_jacobian(state: RobotState, cap: float = 20.0) -> np.ndarray:
+def swivel_jacobian(state: RobotState, cap: float = SWIVEL_CAP) -> np.ndarray:
     """dΨ/dq (F, 2, n) through the shoulder, elbow and wrist position Jacobians of ``state``.
 
     Each arm's row is scaled down to norm ``cap`` (rad/rad) if it is longer: the gradient grows
@@ -194,9 +195,14 @@ def swivel_jacobian(state: RobotState, cap: float = 20.0) -> np.ndarray:
     """
     if state.jac is None:
         raise ValueError("swivel_jacobian needs a RobotState with Jacobians (jacobians=True)")
-    grads = swivel_gradient(state.shoulder, state.elbow, state.wrist)
-    jac = sum(np.einsum("fak,fakn->fan", g, state.jac[:, :, i, :3, :]) for i, g in enumerate(grads))
-    return _capped(np.nan_to_num(jac, nan=0.0, posinf=0.0, neginf=0.0), cap)
+    return _capped(_chained(swivel_gradient(state.shoulder, state.elbow, state.wrist), state.jac), cap)
+
+
+def _chained(grads: tuple[np.ndarray, ...], jac: np.ndarray) -> np.ndarray:
+    """dΨ/dq (F, 2, n) from dΨ/dshoulder, /delbow, /dwrist (each (F, 2, 3)) and the site Jacobians
+    (F, 2, sites, 6, n); 0 where Ψ is singular."""
+    d_psi = sum(np.einsum("fak,fakn->fan", g, jac[:, :, i, :3, :]) for i, g in enumerate(grads))
+    return np.nan_to_num(d_psi, nan=0.0, posinf=0.0, neginf=0.0)
 
 
 def _capped(jac: np.ndarray, cap: float) -> np.ndarray:
@@ -341,72 +347,57 @@ class SwivelPredictor:
 
 _EPS = 1e-6
 _AXES = np.concatenate([np.eye(3), -np.eye(3)])  # +x, +y, +z, -x, -y, -z
+_STEPS = _EPS * _AXES[:, None, None, :]  # (6, 1, 1, 3) moves of a point
+# world-frame turns, left-multiplied: the angular rows of the site Jacobian are world-frame
+_TURNS = Rotation.from_rotvec(_EPS * _AXES).as_matrix()[:, None, None]  # (6, 1, 1, 3, 3)
+# rows of _stepped's 13 at +eps and at -eps along x, y, z: block 0, then block 1
+_PLUS, _MINUS = [1, 2, 3, 7, 8, 9], [4, 5, 6, 10, 11, 12]
 
 
-def prediction_jacobian(predictor: SwivelPredictor, state: RobotState, eps: float = _EPS) -> np.ndarray:
-    """dΨ_human/dq (F, 2, n): central differences of the closed-form prediction in the TCP position
-    relative to the shoulder and in a small world-frame rotation of the TCP (12 evaluations of the
-    regressor, one vectorised call, no kinematics), chained through the site Jacobians. The
-    differences are wrapped, so Ψ's 2π cut does not show."""
-    return prediction_and_jacobian(predictor, state, eps)[1]
+def _stepped(x: np.ndarray, block: int) -> np.ndarray:
+    """13 rows of ``x`` (F, 2, 3) or (F, 2, 3, 3): ``x``, then two blocks of 6 in which ``x`` is
+    moved (points) or turned (rotations) by ±:data:`_EPS` about each axis in block ``block`` (0 or
+    1) and held in the other."""
+    held = np.broadcast_to(x, (6, *x.shape))
+    changed = _TURNS @ x[None] if x.ndim == 4 else x[None] + _STEPS  # rotations (F, 2, 3, 3) turn
+    return np.concatenate([x[None], *((changed, held) if block == 0 else (held, changed))])
 
 
-def prediction_and_jacobian(
-    predictor: SwivelPredictor, state: RobotState, eps: float = _EPS
-) -> tuple[np.ndarray, np.ndarray]:
-    """Ψ_human (F, 2) and :func:`prediction_jacobian` (F, 2, n), from one call of the regressor."""
+def prediction_and_jacobian(predictor: SwivelPredictor, state: RobotState) -> tuple[np.ndarray, np.ndarray]:
+    """Ψ_human (F, 2) and dΨ_human/dq (F, 2, n): central differences of the closed-form prediction
+    in the TCP position relative to the shoulder and in a small world-frame rotation of the TCP,
+    chained through the site Jacobians; one vectorised call of the regressor (13 rows: the
+    configuration, 6 moves, 6 turns), no kinematics. The differences are wrapped, so Ψ's 2π cut
+    does not show."""
     if state.jac is None:
-        raise ValueError("prediction_jacobian needs a RobotState with Jacobians (jacobians=True)")
-    step = eps * _AXES[:, None, None, :]  # (6, 1, 1, 3)
-    n = len(state.q)
-    # world-frame turns, left-multiplied: the angular rows of the site Jacobian are world-frame
-    turns = Rotation.from_rotvec(eps * _AXES).as_matrix()[:, None, None]  # (6, 1, 1, 3, 3)
-    # row 0 the configuration itself, then 6 moves and 6 turns of the TCP
-    pos = np.concatenate([state.tcp[None], state.tcp[None] + step, np.broadcast_to(state.tcp, (6, n, 2, 3))])
-    rot = np.concatenate(
-        [state.tcp_rot[None], np.broadcast_to(state.tcp_rot, (6, n, 2, 3, 3)), turns @ state.tcp_rot[None]]
-    )
+        raise ValueError("prediction_and_jacobian needs a RobotState with Jacobians (jacobians=True)")
+    pos, rot = _stepped(state.tcp, 0), _stepped(state.tcp_rot, 1)  # 6 moves, then 6 turns of the TCP
     psi = predictor.predict(np.broadcast_to(state.shoulder, pos.shape), pos, rot)  # (13, F, 2)
-    d = wrap(psi[[1, 2, 3, 7, 8, 9]] - psi[[4, 5, 6, 10, 11, 12]]) / (2 * eps)  # (6, F, 2)
+    d = wrap(psi[_PLUS] - psi[_MINUS]) / (2 * _EPS)  # (6, F, 2)
     jac = state.jac
     rel = jac[:, :, 3, :3, :] - jac[:, :, 0, :3, :]  # TCP relative to the shoulder
     d_psi = np.einsum("kfa,fakn->fan", d[:3], rel) + np.einsum("kfa,fakn->fan", d[3:], jac[:, :, 3, 3:, :])
     return psi[0], d_psi
 
 
-def weight_jacobian(state: RobotState, eps: float = _EPS) -> np.ndarray:
-    """d swivel_weight / dq (F, 2, n): central differences in the wrist and elbow positions
-    relative to the shoulder (it depends on nothing else), chained through the site Jacobians."""
-    return swivel_parts_and_jacobians(state, eps)[2]
-
-
-def swivel_parts_and_jacobians(
-    state: RobotState, eps: float = _EPS
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Ψ (F, 2), :func:`swivel_weight` (F, 2), :func:`weight_jacobian` (F, 2, n) and the uncapped
-    dΨ/dq (F, 2, n) of ``state``, from one vectorised pass over the arm geometry (13 rows: the
-    configuration, then the wrist and the elbow moved by ±eps along each axis)."""
+def swivel_parts_and_jacobians(state: RobotState) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Ψ (F, 2), :func:`swivel_weight` (F, 2), its derivative d weight / dq (F, 2, n) and the
+    uncapped dΨ/dq (F, 2, n) of ``state``, from one vectorised pass over the arm geometry (13 rows:
+    the configuration, then the wrist and the elbow moved by ±:data:`_EPS` along each axis). The weight
+    depends on the wrist and elbow relative to the shoulder alone: its derivative is central
+    differences in those, chained through the site Jacobians."""
     if state.jac is None:
-        raise ValueError("weight_jacobian needs a RobotState with Jacobians (jacobians=True)")
-    step = eps * _AXES[:, None, None, :]  # (6, 1, 1, 3)
-    n = len(state.q)
-    wrist = np.concatenate(
-        [state.wrist[None], state.wrist[None] + step, np.broadcast_to(state.wrist, (6, n, 2, 3))]
-    )
-    elbow = np.concatenate(
-        [state.elbow[None], np.broadcast_to(state.elbow, (6, n, 2, 3)), state.elbow[None] + step]
-    )
+        raise ValueError("swivel_parts_and_jacobians needs a RobotState with Jacobians (jacobians=True)")
+    wrist, elbow = _stepped(state.wrist, 0), _stepped(state.elbow, 1)
     shoulder = np.broadcast_to(state.shoulder, wrist.shape)
     parts = _swivel_parts(shoulder, elbow, wrist)
     psi, w = _angle_and_weight(parts, elbow - shoulder)  # (13, F, 2)
-    d = (w[[1, 2, 3, 7, 8, 9]] - w[[4, 5, 6, 10, 11, 12]]) / (2 * eps)  # (6, F, 2): d/da, d/db
+    d = (w[_PLUS] - w[_MINUS]) / (2 * _EPS)  # (6, F, 2): d/da, d/db
     jac = state.jac
     d_a = jac[:, :, 2, :3, :] - jac[:, :, 0, :3, :]
     d_b = jac[:, :, 1, :3, :] - jac[:, :, 0, :3, :]
     d_weight = np.einsum("kfa,fakn->fan", d[:3], d_a) + np.einsum("kfa,fakn->fan", d[3:], d_b)
-    grads = _gradient_from_parts(tuple(p[0] for p in parts))
-    d_psi = sum(np.einsum("fak,fakn->fan", g, jac[:, :, i, :3, :]) for i, g in enumerate(grads))
-    return psi[0], w[0], d_weight, np.nan_to_num(d_psi, nan=0.0, posinf=0.0, neginf=0.0)
+    return psi[0], w[0], d_weight, _chained(_gradient_from_parts(tuple(p[0] for p in parts)), jac)
 
 
 # --- the criterion ---------------------------------------------------------------------------
@@ -442,8 +433,8 @@ class EEA(Criterion):
     elevation to compare. The prediction and the weight are held fixed in :meth:`jacobian` (the
     QP's Gauss-Newton step, formulas.md §9); each factor of the weight is above 0.99 beyond 19° from
     its singularity. :meth:`gradient` (SLSQP, JV) is exact: it adds the prediction's and the
-    weight's derivatives (:func:`prediction_jacobian`, :func:`weight_jacobian`), its norm capped at
-    :data:`GRADIENT_CAP` as the paper caps the elevation gradients (Sec. IV-A).
+    weight's derivatives (:func:`prediction_and_jacobian`, :func:`swivel_parts_and_jacobians`), its
+    norm capped at :data:`GRADIENT_CAP` as the paper caps the elevation gradients (Sec. IV-A).
     """
 
     name, gamma, x0, weight = "EEA", 4.0, 0.3, 1 / 20
@@ -482,7 +473,7 @@ class EEA(Criterion):
         psi, weight, d_weight, d_swivel = swivel_parts_and_jacobians(state)
         target, d_target = self.target_and_jacobian(state, sample, psi)
         r = np.nan_to_num(eea_residual(psi, target))
-        d_psi = _capped(d_swivel, 20.0) - d_target
+        d_psi = _capped(d_swivel, SWIVEL_CAP) - d_target
         jac = d_weight * r[..., None] + weight[..., None] * d_psi / np.pi  # (1, 2, n)
         h, dh_de = self.metric((weight * r)[0])
         g = dh_de @ jac[0]
