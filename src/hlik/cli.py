@@ -378,30 +378,34 @@ def _run_warnings(traj: Trajectory, motion: HumanMotion, ev: Evaluation, rate: f
     # jm maps the joint angles: by design it neither tracks the hands nor keeps the speed limits
     # (the summary says how far off it is); warning on every jm run would bury the real warnings.
     tracking = traj.solver != "jm"
+
+    def often(err: np.ndarray, limit: float) -> int:
+        """Frames of ``err`` (T,) above ``limit``, if a tracking solver has more than OFF_SHARE; else 0."""
+        k = int(np.count_nonzero(err > limit))
+        return k if tracking and k > OFF_SHARE * n else 0
+
     if ev.scenario == "relative":  # the hands follow their relative pose, not the human's hands
         gap = relative_errors(traj.tcp_pos, traj.tcp_rot, traj.targets.pos, traj.targets.rot)[0]
-        off = int(np.count_nonzero(gap > LAG))
-        if tracking and off > OFF_SHARE * n:
+        if off := often(gap, LAG):
             notes.append(
                 f"the hands' relative position is more than {100 * LAG:.0f} cm off the human's in "
                 f"{share(off)}, up to {100 * gap.max():.1f} cm (fPOS_off)"
             )
-    fpos = position_error(traj.tcp_pos, traj.targets.pos)  # (T, 2) m
-    for i, side in enumerate(("left", "right")):
-        off = int(np.count_nonzero(fpos[:, i] > LAG))
-        if tracking and ev.scenario == "pose" and off > OFF_SHARE * n:
-            notes.append(
-                f"{side} hand more than {100 * LAG:.0f} cm off its target in {share(off)}, "
-                f"up to {100 * fpos[:, i].max():.1f} cm (out of reach, or too fast for the speed limits)"
-            )
-    fori = np.degrees(rotation_angle(traj.tcp_rot, traj.targets.rot))  # (T, 2)
-    for i, side in enumerate(("left", "right")):
-        off = int(np.count_nonzero(fori[:, i] > TURNED))
-        if tracking and ev.scenario == "pose" and off > OFF_SHARE * n:
-            notes.append(
-                f"{side} hand turned more than {TURNED:.0f}° from its target in {share(off)}, up to "
-                f"{fori[:, i].max():.0f}° (out of reach, or traded for the criteria)"
-            )
+    else:
+        fpos = position_error(traj.tcp_pos, traj.targets.pos)  # (T, 2) m
+        fori = np.degrees(rotation_angle(traj.tcp_rot, traj.targets.rot))  # (T, 2)
+        for i, side in enumerate(("left", "right")):
+            if off := often(fpos[:, i], LAG):
+                notes.append(
+                    f"{side} hand more than {100 * LAG:.0f} cm off its target in {share(off)}, up to "
+                    f"{100 * fpos[:, i].max():.1f} cm (out of reach, or too fast for the speed limits)"
+                )
+        for i, side in enumerate(("left", "right")):
+            if off := often(fori[:, i], TURNED):
+                notes.append(
+                    f"{side} hand turned more than {TURNED:.0f}° from its target in {share(off)}, up to "
+                    f"{fori[:, i].max():.0f}° (out of reach, or traded for the criteria)"
+                )
     if rate == 0 and motion.rate < LOW_RATE:
         notes.append(
             f"--rate 0 keeps the motion's {motion.rate:g} Hz; the criteria's constants assume 100 Hz "
