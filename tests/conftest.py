@@ -39,6 +39,13 @@ def takes() -> list[Path]:
     return kit_takes()
 
 
+@pytest.fixture(scope="session")
+def cut_take(takes) -> Path:
+    """The Cut take (subject 1723 cutting, 10.6 s): objects with markers, one without."""
+    (path,) = [p for p in takes if p.name.startswith("Cut_")]
+    return path
+
+
 @pytest.fixture(autouse=True, scope="session")
 def _private_cache(tmp_path_factory):
     """Learned criteria are cached in a per-session folder, never in the user's cache."""

@@ -46,10 +46,9 @@ def armar6():
 
 
 @pytest.fixture(scope="module")
-def cut(takes):
-    """The Cut take (objects with markers, one without) at 100 Hz: 1061 frames."""
-    (path,) = [p for p in takes if p.name.startswith("Cut_")]
-    return load_motion(path, rate=100.0)
+def cut(cut_take):
+    """The Cut take at 100 Hz: 1061 frames."""
+    return load_motion(cut_take, rate=100.0)
 
 
 def _trajectory(motion: HumanMotion, robot) -> Trajectory:

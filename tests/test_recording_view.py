@@ -43,9 +43,8 @@ def armar6():
 
 
 @pytest.fixture(scope="module")
-def cut(takes):
-    (path,) = [p for p in takes if p.name.startswith("Cut_")]
-    return load_motion(path, rate=100.0).crop(2.0, 3.0)
+def cut(cut_take):
+    return load_motion(cut_take, rate=100.0).crop(2.0, 3.0)
 
 
 @pytest.fixture(scope="module", params=["pose", "relative"])

@@ -244,7 +244,7 @@ def test_solver_plugs_into_retarget():
     assert get_solver("slsqp", SLSQPSettings(max_eval=30)).name == "slsqp"
 
 
-def test_the_first_frame_reaches_its_targets_from_the_mapped_pose(takes):
+def test_the_first_frame_reaches_its_targets_from_the_mapped_pose(cut_take):
     # The Cut take starts where 2-Panda's mapped pose puts the left hand 12 cm off its target. The
     # first frame has no motion before it: with the minimum velocity, acceleration and jerk toward
     # that start it stayed 11.7 cm off and took 30 frames to catch up.
@@ -252,7 +252,7 @@ def test_the_first_frame_reaches_its_targets_from_the_mapped_pose(takes):
     from hlik.solvers.stack_file import load_stack
 
     robot = load_robot("dual_panda")
-    motion = load_motion(next(t for t in takes if t.name.startswith("Cut")), rate=100.0).crop(0.0, 0.1)
+    motion = load_motion(cut_take, rate=100.0).crop(0.0, 0.1)
     settings = replace(load_stack("ee_pose").settings("slsqp"), criteria=("SYN", "HJA_r"))
     traj = retarget(motion, robot, get_solver("slsqp", settings, learn(robot)))
     assert np.all(position_error(traj.tcp_pos[:1], traj.targets.pos[:1]) < 0.02)
