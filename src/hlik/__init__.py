@@ -7,9 +7,10 @@ metrics -> recording.
 from __future__ import annotations
 
 import sys
-from importlib import import_module
 from types import ModuleType
 from typing import TYPE_CHECKING, Any
+
+from hlik.lazy import lazy_getattr
 
 if TYPE_CHECKING:
     from hlik.errors import HlikError, MotionFormatError, RobotError, TrajectoryFormatError
@@ -72,12 +73,7 @@ class _Package(ModuleType):
 sys.modules[__name__].__class__ = _Package
 
 
-def __getattr__(name: str) -> Any:
-    if name not in _WHERE:
-        raise AttributeError(f"module 'hlik' has no attribute {name!r}")
-    value = getattr(import_module(_WHERE[name]), name)
-    globals()[name] = value  # once imported, a plain attribute
-    return value
+__getattr__ = lazy_getattr(__name__, _WHERE, globals())
 
 
 def __dir__() -> list[str]:

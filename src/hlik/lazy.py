@@ -1,0 +1,26 @@
+"""Lazy package attributes (PEP 562): a package's public names, imported from their modules on
+first use, so that importing the package (or ``hlik.cli``) does not pay for MuJoCo, SciPy or Rerun."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from importlib import import_module
+from typing import Any
+
+
+def lazy_getattr(package: str, where: Mapping[str, str], namespace: dict[str, Any]) -> Callable[[str], Any]:
+    """The module ``__getattr__`` of ``package``: name -> the attribute of that name in the module
+    ``where[name]``, stored in ``namespace`` (the package's globals) once imported.
+
+    Raises:
+        AttributeError: a name not in ``where``.
+    """
+
+    def __getattr__(name: str) -> Any:
+        if name not in where:
+            raise AttributeError(f"module {package!r} has no attribute {name!r}")
+        value = getattr(import_module(where[name]), name)
+        namespace[name] = value  # once imported, a plain attribute
+        return value
+
+    return __getattr__
