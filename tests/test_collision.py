@@ -110,7 +110,7 @@ def test_every_body_with_a_visual_geom_has_a_collision_geom(robot):
 
 def test_collision_geoms_are_massless(robot):
     """Body masses and inertias equal those of the same model with every collision geom deleted."""
-    spec = mujoco.MjSpec.from_file(str(robot.mjcf))
+    spec = mujoco.MjSpec.from_file(str(robot.model_file))
     deleted = 0
     for geom in list(spec.geoms):
         if geom.group == COLLISION_GROUP:

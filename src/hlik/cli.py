@@ -94,6 +94,8 @@ app = typer.Typer(
     add_completion=False,
     pretty_exceptions_enable=False,
 )
+# Motion files a folder of takes may hold: MMM, BVH, keypoint descriptions (hlik.human.load_motion).
+MOTION_FILES = ("*.xml", "*.bvh", "*.toml")
 # Output is text, not markup: file, motion and object names print as written ("[red]take.xml").
 console = Console(markup=False)
 
@@ -142,7 +144,9 @@ def _one_line() -> Iterator[None]:
 @app.command()
 def run(
     motion: MotionArg = None,
-    robot: Annotated[str, typer.Option("--robot", "-r", help="Robot name (see `hlik robots`).")] = "armar6",
+    robot: Annotated[
+        str, typer.Option("--robot", "-r", help="Robot name (see `hlik robots`) or path of a robot .toml.")
+    ] = "armar6",
     solver: Annotated[
         str, typer.Option("--solver", "-s", help="Retargeting solver: jm, jv, qp or slsqp.")
     ] = "jm",
@@ -555,7 +559,7 @@ def _run_summary(title: str, traj, motion, solve_time: float, rrd: Path, npz: Pa
 
     fpos = position_error(traj.tcp_pos, traj.targets.pos)
     fori = rotation_angle(traj.tcp_rot, traj.targets.rot)
-    table = Table(show_header=False, box=None, title=f"{title} -> {traj.robot} ({traj.solver})")
+    table = Table(show_header=False, box=None, title=f"{title} -> {Path(traj.robot).stem} ({traj.solver})")
     table.add_column(no_wrap=True)
     table.add_column(overflow="fold")
     table.add_row("frames", f"{traj.n_frames} over {motion.duration:.2f} s at {motion.rate:.1f} Hz")
@@ -640,7 +644,7 @@ def evaluate(
         sys.stdout.write(json.dumps(ev.to_json(), indent=2) + "\n")
         return
     x0 = midpoints(scenario, ev.metric)
-    title = f"{trajectory.name}: {traj.robot}, {traj.solver}; weights and x0: {ev.metric.source}"
+    title = f"{trajectory.name}: {Path(traj.robot).stem}, {traj.solver}; weights and x0: {ev.metric.source}"
     table = Table("criterion", "mean h", "x0", "m", title=title)
     for k in x0:
         table.add_row(k, f"{ev.h[k].mean():.4g}", f"{x0[k]:g}", f"{ev.m[k]:.3f}")
@@ -761,7 +765,7 @@ def study(
     corpus: CorpusOpt = None,
 ) -> None:
     """The paper's study: retarget, correlate the criteria, derive the metric, rank the approaches."""
-    from hlik.robot.model import available_robots
+    from hlik.robot.model import available_robots, robot_toml
     from hlik.study.approaches import PAPER, load_approaches
     from hlik.study.runner import plan, run_study
 
@@ -771,11 +775,18 @@ def study(
             raise HlikError(f"--seconds must be positive and finite, got {seconds:g}")
         if workers is not None and workers < 1:
             raise HlikError(f"--workers must be at least 1, got {workers}")
-        files = sorted(folder.glob("*.xml")) if folder.is_dir() else [folder]
+        files = (
+            sorted(f for pattern in MOTION_FILES for f in folder.glob(pattern))
+            if folder.is_dir()
+            else [folder]
+        )
         if not files or not all(f.is_file() for f in files):
-            raise HlikError(f"{folder}: no MMM takes (*.xml)")
+            raise HlikError(f"{folder}: no takes ({', '.join(MOTION_FILES)})")
         names = [r.strip() for r in robots.split(",") if r.strip()]
-        unknown = [r for r in names if r not in available_robots()]
+        for given in names:
+            if given.endswith(".toml"):
+                robot_toml(given)  # a robot by path: the file must be there
+        unknown = [r for r in names if r not in available_robots() and not r.endswith(".toml")]
         if unknown or not names:
             raise HlikError(f"unknown robot {unknown[0] if unknown else robots!r}; see `hlik robots`")
         listed = load_approaches(approaches or PAPER)
@@ -856,24 +867,38 @@ def info(motion: MotionArg = None) -> None:
 
 @app.command()
 def calibrate(
-    robot: Annotated[str, typer.Argument(help="Robot name (see `hlik robots`).")],
+    robot: Annotated[str, typer.Argument(help="Robot name (see `hlik robots`) or path of a robot .toml.")],
     toml: Annotated[
         bool,
         typer.Option("--toml", help="Print the mapping tables as TOML.", metavar=_FLAG, show_default=False),
+    ] = False,
+    write: Annotated[
+        bool,
+        typer.Option(
+            "--write",
+            help="Write the mapping tables into the robot's .toml (replacing [mapping.*]).",
+            metavar=_FLAG,
+            show_default=False,
+        ),
     ] = False,
 ) -> None:
     """Derive the MMM -> robot joint mapping (paper Sec. III-A) and print it."""
     import numpy as np
 
     from hlik.robot.calibrate import calibrate as run_calibration
-    from hlik.robot.calibrate import mapping_toml
-    from hlik.robot.model import load_robot
+    from hlik.robot.calibrate import mapping_toml, write_mapping
+    from hlik.robot.model import load_robot, robot_toml
 
     with _one_line():
-        r = load_robot(robot)
+        r = load_robot(robot, need_mapping=False)
     cal = run_calibration(r)
     if toml:
         sys.stdout.write(mapping_toml(r, cal.mapping))
+        return
+    if write:
+        path = robot_toml(robot)
+        write_mapping(path, mapping_toml(r, cal.mapping))
+        console.print(f"wrote [mapping.left] and [mapping.right] to {path}")
         return
     table = Table(
         "robot joint",
@@ -901,17 +926,20 @@ def calibrate(
     if offsets:
         found = ", ".join(f"{joint} {off.gain:+.3f}·{off.mmm}" for joint, off in offsets)
         console.print(f"dynamic offsets: {found} (paper, ARMAR-6 Sho2: +{0.55 / np.pi:.3f}·s_x)")
-    stored = r.mapping
+    stored = {m.joint: m for m in r.mapping.joints}
     same = all(_close(stored.get(m.joint), m) for m in cal.mapping.joints)
+    where = robot_toml(robot)
     console.print(
-        f"matches robots/{r.name}.toml"
+        f"matches {where}"
         if same
-        else Text.assemble((f"differs from robots/{r.name}.toml", "yellow"), " (print with --toml)")
+        else Text.assemble((f"differs from {where}", "yellow"), " (print with --toml, store with --write)")
     )
 
 
-def _close(a: JointMap, b: JointMap) -> bool:
+def _close(a: JointMap | None, b: JointMap) -> bool:
     """Same joint mapping up to the printed precision (1e-3 rad, 1e-3 gain)."""
+    if a is None:
+        return False
     if (a.mmm != b.mmm and not a.a == 0 == b.a) or a.a != b.a or abs(a.b - b.b) >= 1e-3:
         return False
     if a.offset is None or b.offset is None:

@@ -46,6 +46,7 @@ from hlik.atomic import atomic_path
 from hlik.criteria import registry, unified
 from hlik.criteria.functional import position_error, relative_errors, rotation_angle
 from hlik.fk import body_poses
+from hlik.human.fit import fit_error
 from hlik.human.kinematics import human_model, qpos_trajectory
 from hlik.human.motion import ObjectMotion
 from hlik.metrics import Evaluation
@@ -114,11 +115,13 @@ def write_recording(
     path = Path(path)
     _check_space(path, trajectory.n_frames)
     recording_id = f"{trajectory.motion.name}-{robot.name}-{trajectory.solver}"
+    fit = fit_error(trajectory.motion)
     view = blueprint(
         robot,
         scenario=scenario,
         criteria=tuple(curves),
         unified=evaluation is not None,
+        fitted=fit is not None,
         camera=scene_camera(trajectory, robot, layout),
         robot_camera=robot_camera(trajectory, robot),
     )
@@ -127,7 +130,7 @@ def write_recording(
         try:
             rec.set_log_time_enabled(False)
             rec.save(tmp, default_blueprint=view)
-            _log(rec, trajectory, robot, layout, curves, chunk_frames, scenario, evaluation)
+            _log(rec, trajectory, robot, layout, curves, chunk_frames, scenario, evaluation, fit)
             text = summary(trajectory, robot, evaluation, info)
             rec.log("/result", rr.TextDocument(text, media_type=rr.MediaType.MARKDOWN), static=True)
             if evaluation is not None:
@@ -213,6 +216,7 @@ def blueprint(
     unified: bool = False,
     camera: Camera | None = None,
     robot_camera: Camera | None = None,
+    fitted: bool = False,
 ) -> rrb.Blueprint:
     """The 3D scene (human and robot, or the robot alone, in tabs) over the result panel, beside
     the plots: joint angles per arm, tracking errors, scores by cluster, solver diagnostics.
@@ -223,6 +227,7 @@ def blueprint(
         criteria: Names of the criteria with score curves (one panel per cluster they fall in).
         unified: Whether m_hl(t) and m_f(t) are logged (they then open the score tabs).
         camera, robot_camera: Where the scene (world frame) and robot (base frame) views open.
+        fitted: Whether the motion was fitted to keypoints (a tab with the fit error).
     """
     scene = rrb.Spatial3DView(
         origin="/world", name="human and robot", eye_controls=camera.controls() if camera else None
@@ -255,6 +260,8 @@ def blueprint(
             contents = [f"/plots/metrics/{_entity(c)}" for c in shown]
             scores.append(_plot("/plots/metrics", f"scores: {title}", contents))
     scores.append(_plot("/plots/solver", "solver: iterations per frame, failed"))
+    if fitted:
+        scores.append(_plot("/plots/fit", "MMM fit: largest elbow/wrist error (m)"))
     rows.append(rrb.Tabs(*scores, active_tab=0))
     return rrb.Blueprint(
         rrb.Horizontal(
@@ -385,8 +392,11 @@ def _log(
     chunk_frames: int = CHUNK_FRAMES,
     scenario: str = "pose",
     evaluation: Evaluation | None = None,
+    fit: np.ndarray | None = None,
 ) -> None:
-    """Log everything static once, then every track chunk by chunk of ``chunk_frames`` frames."""
+    """Log everything static once, then every track chunk by chunk of ``chunk_frames`` frames.
+
+    ``fit`` (T,): the MMM fit error of a motion fitted to keypoints; its keypoints are drawn too."""
     rec.log("/world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
     times = traj.times
 
@@ -402,6 +412,8 @@ def _log(
         )
     ]
     _log_paths(rec, "/world/human/hand_paths", traj.placement.to_world(traj.targets.pos), SIDE_COLORS)
+    if fit is not None:
+        tracks.append(_keypoints_track(rec, "/world/human/keypoints", traj.motion.markers, times))
     for name, obj in traj.motion.objects.items():
         tracks += _object(rec, _entity(name), obj, times, chunk_frames)
 
@@ -469,6 +481,8 @@ def _log(
         m_hl, m_f = unified_curves(evaluation)
         curves[_curve(rec, "/plots/unified/m_hl", "m_hl(t) (score)", PALETTE[0])] = m_hl
         curves[_curve(rec, "/plots/unified/m_f", "m_f(t) (score)", PALETTE[1])] = m_f
+    if fit is not None:
+        curves[_curve(rec, "/plots/fit/error", "fit error (m)", PALETTE[0])] = fit
     d = traj.diagnostics
     curves[_curve(rec, "/plots/solver/iterations", "iterations (count)", PALETTE[0])] = d.iterations.astype(
         float
@@ -525,9 +539,10 @@ def _model(
 def _geometry(model: mujoco.MjModel, geoms: list[int], alpha: int) -> dict[str, rr.AsComponents]:
     """Rerun primitives for MuJoCo geoms, in their body's frame, one batch per kind."""
     batches: dict[str, dict[str, list]] = {}
+    meshes = [g for g in geoms if model.geom_type[g] == mujoco.mjtGeom.mjGEOM_MESH]
     for g in geoms:
         gtype = mujoco.mjtGeom(int(model.geom_type[g]))
-        if gtype not in _PRIMITIVES:  # planes, meshes, height fields: the bundled models use none
+        if gtype not in _PRIMITIVES:  # planes and height fields: robots have none
             continue
         kind, fields = _PRIMITIVES[gtype]
         rot = np.empty(9)
@@ -537,7 +552,33 @@ def _geometry(model: mujoco.MjModel, geoms: list[int], alpha: int) -> dict[str, 
             batch.setdefault(key, []).append(value)
         batch["quaternions"].append(_xyzw(model.geom_quat[g]))
         batch["colors"].append((*np.round(255 * model.geom_rgba[g, :3]).astype(int), alpha))
-    return {kind: _ARCHETYPES[kind](**batch, fill_mode=_FILL) for kind, batch in batches.items()}
+    archetypes = {kind: _ARCHETYPES[kind](**batch, fill_mode=_FILL) for kind, batch in batches.items()}
+    if meshes:
+        archetypes["mesh"] = _mesh(model, meshes, alpha)
+    return archetypes
+
+
+def _mesh(model: mujoco.MjModel, geoms: list[int], alpha: int) -> rr.Mesh3D:
+    """One Rerun mesh of a body's mesh geoms (models imported from URDF or Menagerie), in the
+    body's frame: MuJoCo stores each mesh centred in its geom's frame."""
+    positions, triangles, colors, offset = [], [], [], 0
+    for g in geoms:
+        mesh = int(model.geom_dataid[g])
+        vert = model.mesh_vert[model.mesh_vertadr[mesh] : model.mesh_vertadr[mesh] + model.mesh_vertnum[mesh]]
+        face = model.mesh_face[model.mesh_faceadr[mesh] : model.mesh_faceadr[mesh] + model.mesh_facenum[mesh]]
+        rot = np.empty(9)
+        mujoco.mju_quat2Mat(rot, model.geom_quat[g])
+        positions.append(vert @ rot.reshape(3, 3).T + model.geom_pos[g])
+        triangles.append(face + offset)
+        offset += len(vert)
+        mat = int(model.geom_matid[g])
+        rgba = model.mat_rgba[mat] if mat >= 0 else model.geom_rgba[g]
+        colors.append(np.tile((*np.round(255 * rgba[:3]).astype(int), alpha), (len(vert), 1)))
+    return rr.Mesh3D(
+        vertex_positions=np.concatenate(positions),
+        triangle_indices=np.concatenate(triangles),
+        vertex_colors=np.concatenate(colors).astype(np.uint8),
+    )
 
 
 # MuJoCo geom (size, pos, rot) -> Rerun fields. MuJoCo capsules are centred on pos; Rerun's start at
@@ -585,6 +626,25 @@ def _log_paths(rec, entity: str, pos: np.ndarray, colors: Mapping[str, tuple]) -
         ),
         static=True,
     )
+
+
+def _keypoints_track(rec, entity: str, markers: Mapping[str, np.ndarray], times: np.ndarray) -> Track:
+    """Log the source keypoints a fitted motion carries as markers; the track of their positions."""
+    names = [n for n in markers if n.split("_", 1)[0] in SIDES]
+    points = np.stack([markers[n] for n in names], axis=1)  # (T, K, 3)
+    colors = [SIDE_COLORS[n.split("_", 1)[0]] for n in names]
+    rec.log(
+        entity,
+        rr.Points3D.from_fields(radii=0.015, colors=colors, labels=names, show_labels=False),
+        static=True,
+    )
+
+    def track(rows: slice) -> Iterator[Columns]:
+        p = points[rows]
+        columns = rr.Points3D.columns(positions=p.reshape(-1, 3)).partition(lengths=[p.shape[1]] * len(p))
+        yield entity, _index(times, rows), columns
+
+    return track
 
 
 def _frames_track(rec, entity: str, pos: np.ndarray, rot: np.ndarray, times: np.ndarray) -> Track:

@@ -49,7 +49,7 @@ def trajectory_of(problem: Problem, result: SolverResult | np.ndarray, solver: s
         raise HlikError(f"solver {solver!r} returned joint angles of shape {q.shape}, expected {expected}")
     tcp_pos, tcp_rot = tcp_poses(robot, q)
     return Trajectory(
-        robot=robot.name,
+        robot=robot.reference,
         solver=solver,
         times=problem.motion.times,
         joint_names=robot.joint_names,

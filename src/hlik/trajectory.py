@@ -33,7 +33,7 @@ class Trajectory:
     """Robot motion retargeted from a human motion; arm index 0 = left, 1 = right.
 
     Attributes:
-        robot: Robot name (``hlik.load_robot`` loads it).
+        robot: What ``hlik.load_robot`` loads the robot from: a bundled name or a TOML path.
         solver: Name of the solver that made it.
         times: (T,) seconds.
         joint_names: (n,) robot joint names; columns of ``q``.

@@ -43,6 +43,11 @@ def human_model(height: float) -> mujoco.MjModel:
 
     The model is shared: read it, make an ``MjData`` of it, never modify it.
     """
+    return human_spec(height).compile()
+
+
+def human_spec(height: float) -> mujoco.MjSpec:
+    """A fresh ``MjSpec`` of the MMM model scaled to a subject of ``height`` metres."""
     spec = mujoco.MjSpec.from_file(str(robots_dir() / "mjcf" / "mmm.xml"))
     for body in spec.bodies:
         body.pos = np.asarray(body.pos) * height
@@ -54,7 +59,7 @@ def human_model(height: float) -> mujoco.MjModel:
         fromto = np.asarray(geom.fromto)
         if np.all(np.isfinite(fromto)):
             geom.fromto = fromto * height
-    return spec.compile()
+    return spec
 
 
 def qpos_trajectory(model: mujoco.MjModel, motion: HumanMotion) -> np.ndarray:

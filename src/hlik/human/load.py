@@ -4,20 +4,38 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from hlik.errors import MotionFormatError
 from hlik.human.mmm_format import read_mmm
 from hlik.human.motion import HumanMotion
 
 
 def load_motion(path: str | Path, rate: float | None = None) -> HumanMotion:
-    """Read an MMM motion file (MMM 2.0 or legacy), optionally resampled to ``rate`` Hz.
+    """Read a motion file, optionally resampled to ``rate`` Hz.
+
+    - ``.xml``: MMM 2.0 or legacy MMM;
+    - ``.bvh``: a BVH skeleton with the usual joint names, fitted to the MMM model;
+    - ``.toml``: a keypoint description (:mod:`hlik.human.keypoints`: joint positions in a
+      ``.csv``/``.txt``/``.npy``/``.npz`` or a BVH with other names), fitted to the MMM model
+      (:mod:`hlik.human.fit`).
 
     What the reader worked around (streams cut to a common span, gaps, poses outside the MMM
-    ranges, lost markers, objects left out) is in the motion's ``notes``, one line each.
+    ranges, lost markers, objects left out, detected units and axes) and the fit error are in the
+    motion's ``notes``, one line each.
 
     Raises:
         hlik.errors.MotionFormatError: the file is missing, malformed, inconsistent or implausible.
         hlik.errors.SettingsError: ``rate`` is outside 1-10000 Hz, or the resampled motion would
             have more than 10^6 frames.
     """
-    motion = read_mmm(Path(path))
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix in (".toml", ".bvh"):
+        from hlik.human.fit import fit_mmm
+        from hlik.human.keypoints import read_bvh, read_keypoints
+
+        if not path.is_file():
+            raise MotionFormatError(path, "no such file")
+        motion = fit_mmm(read_keypoints(path) if suffix == ".toml" else read_bvh(path))
+    else:
+        motion = read_mmm(path)
     return motion if rate is None else motion.resample(rate)

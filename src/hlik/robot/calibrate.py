@@ -18,12 +18,14 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 import mujoco
 import numpy as np
 from scipy.optimize import least_squares, linear_sum_assignment, minimize_scalar
 from scipy.spatial.transform import Rotation
 
+from hlik.atomic import atomic_path
 from hlik.human.kinematics import human_model
 from hlik.human.motion import ARM_JOINTS
 from hlik.robot.mapping import DynamicOffset, JointMap, JointMapping
@@ -291,6 +293,22 @@ def mapping_toml(robot: Robot, mapping: JointMapping) -> str:
             lines.append(f"{name} = {{ {', '.join(fields)} }}")
         lines.append("")
     return "\n".join(lines)
+
+
+def write_mapping(path: Path, text: str) -> None:
+    """Replace the ``[mapping.*]`` tables of the robot toml ``path`` by ``text`` (appended if absent);
+    every other line, comments included, stays as it was."""
+    kept, skipping = [], False
+    for line in path.read_text(encoding="utf-8").splitlines():
+        header = line.strip().startswith("[") and not line.strip().startswith("[[")
+        if header:
+            skipping = line.strip().startswith("[mapping")
+        if not skipping:
+            kept.append(line)
+    while kept and not kept[-1].strip():
+        kept.pop()
+    with atomic_path(path) as tmp:
+        tmp.write_text("\n".join(kept) + "\n\n" + text, encoding="utf-8")
 
 
 def _num(x: float) -> str:

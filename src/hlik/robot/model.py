@@ -1,9 +1,10 @@
-"""Robot descriptions: an MJCF model plus ``robots/<name>.toml`` (arms, limits, home, mapping)."""
+"""Robot descriptions: a model file (MJCF or URDF) plus a TOML (arms, limits, home, mapping, sites)."""
 
 from __future__ import annotations
 
 import math
 import re
+from collections.abc import Mapping
 from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
@@ -16,6 +17,9 @@ from hlik.errors import HlikError, MotionFormatError, RobotError
 from hlik.fk import site_poses
 from hlik.paths import robots_dir
 from hlik.robot.mapping import JointMapping
+from hlik.robot.model_file import COLLISION_GROUP as COLLISION_GROUP  # re-exported: models' geom groups
+from hlik.robot.model_file import VISUAL_GROUP as VISUAL_GROUP
+from hlik.robot.model_file import compile_model
 from hlik.tomlfile import read_toml
 
 if TYPE_CHECKING:  # scipy comes with the motion; `hlik robots` needs none
@@ -25,7 +29,6 @@ if TYPE_CHECKING:  # scipy comes with the motion; `hlik robots` needs none
 NAME = re.compile(r"[A-Za-z0-9_-]+")
 
 SIDES = ("left", "right")
-VISUAL_GROUP, COLLISION_GROUP = 1, 3  # MJCF geom groups: what a viewer draws, what collides
 # Per arm: joint centres, the tracking TCP, and the frame whose velocity manipulability MAN^r reads
 # (``{side}_{Robot.manipulability_site}``; robots/README.md).
 SITES = ("shoulder", "elbow", "wrist", "tcp", "manipulability")
@@ -40,7 +43,7 @@ class Robot:
     Attributes:
         name: Short name (``armar3``, ``armar6``, ``dual_panda``).
         title: Display name.
-        mjcf: Path of the MJCF model.
+        model_file: The model file (MJCF or URDF) the model was compiled from.
         model: The compiled MuJoCo model; ``qpos`` holds exactly the robot's joints.
         joint_names: (n,) joint names in ``qpos`` order.
         arm_joints: Side -> arm joint names, proximal to distal.
@@ -55,11 +58,12 @@ class Robot:
             proximal to the arm (ARMAR-III's hip, as in the paper's IK).
         placement: The placement rule used when none is given (``reach``, ``mapped``, ...; see
             :mod:`hlik.problem.placement`), chosen per robot from measurements (robots/README.md).
+        description: The robot's TOML file.
     """
 
     name: str
     title: str
-    mjcf: Path
+    model_file: Path
     model: mujoco.MjModel
     joint_names: tuple[str, ...]
     arm_joints: dict[str, tuple[str, ...]]
@@ -73,6 +77,14 @@ class Robot:
     manipulability_site: str = "tcp"
     manipulability_joints: tuple[str, ...] = ()
     placement: str = "reach"
+    description: Path | None = None
+
+    @property
+    def reference(self) -> str:
+        """What :func:`load_robot` loads this robot from: its name if bundled, else its TOML's path."""
+        if self.description is None or self.description.parent.resolve() == robots_dir().resolve():
+            return self.name
+        return str(self.description.resolve())
 
     @property
     def dof(self) -> int:
@@ -107,7 +119,7 @@ class Robot:
         return (
             f"Robot(name={self.name!r}, title={self.title!r}, dof={self.dof}, arms={arms}, "
             f"extra={list(self.extra_joints)}, unlimited={len(self.unlimited)}, "
-            f"mjcf={self.mjcf.name!r})"
+            f"model_file={self.model_file.name!r})"
         )
 
 
@@ -149,50 +161,74 @@ def available_robots() -> tuple[str, ...]:
     return tuple(sorted(p.stem for p in robots_dir().glob("*.toml")))
 
 
-def load_robot(name: str) -> Robot:
-    """Load a bundled robot by name, or a robot toml by path.
+def robot_toml(name: str) -> Path:
+    """The description file of a bundled robot's name, or of a path ending in ``.toml``.
 
     Raises:
-        hlik.errors.RobotError: unknown name, an unreadable or malformed description (naming the
-            file, the table and key), or one inconsistent with its model.
+        hlik.errors.RobotError: no such robot or file.
     """
     by_path = name.endswith(".toml")
     path = Path(name) if by_path else robots_dir() / f"{name}.toml"
     if not path.is_file() or not (by_path or NAME.fullmatch(name)):
         if by_path and path.exists():
             raise RobotError(f"{path}: is a folder, expected a robot .toml file")
+        if by_path:
+            raise RobotError(f"{path}: no such robot description")
         known = ", ".join(available_robots())
         raise RobotError(f"unknown robot {name!r}; choose one of: {known}")
+    return path
+
+
+def load_robot(name: str, need_mapping: bool = True) -> Robot:
+    """Load a bundled robot by name, or a robot toml by path.
+
+    ``need_mapping=False`` accepts a description without its ``[mapping]`` tables (arm joints left
+    out are held at home), for ``hlik calibrate`` to derive them.
+
+    Raises:
+        hlik.errors.RobotError: unknown name, an unreadable or malformed description (naming the
+            file, the table and key), or one inconsistent with its model.
+    """
+    path = robot_toml(name)
     try:
         desc = read_toml(path, "robot")
     except HlikError as e:
         raise RobotError(str(e)) from None
-    return _build(path, desc)
+    return _build(path, desc, need_mapping)
 
 
-def _build(path: Path, desc: dict) -> Robot:
+def _build(path: Path, desc: dict, need_mapping: bool = True) -> Robot:
     name = _text(path, desc, "name", path.stem)
     if not NAME.fullmatch(name):
         raise RobotError(f"{path}: name {name!r} must be letters, digits, '_' or '-' (it names files)")
-    mjcf_name = _text(path, desc, "mjcf")
+    source = _text(path, desc, "model", desc.get("mjcf"))  # ``mjcf`` is the key's former name
     arms_table = _table(path, desc, "arms")
     arms = {s: _names(path, _table(path, arms_table, s, f"arms.{s}"), "joints", f"arms.{s}") for s in SIDES}
-    mjcf = (path.parent / mjcf_name).resolve()
-    try:
-        model = mujoco.MjModel.from_xml_path(str(mjcf))
-    except ValueError as e:
-        raise RobotError(f"{mjcf}: cannot load MJCF: {' '.join(str(e).split())}") from None
-    names = tuple(model.joint(i).name for i in range(model.njnt))
-    if model.nq != model.njnt or np.any(model.jnt_type != mujoco.mjtJoint.mjJNT_HINGE):
-        raise RobotError(f"{mjcf}: robot joints must all be hinges")
     extra = _names(path, desc, "extra_joints", "the top level", required=False)
     listed = [j for s in SIDES for j in arms[s]] + list(extra)
-    unknown = [j for j in listed if j not in names]
-    if unknown:
-        raise RobotError(f"{path}: joints not in the model: {', '.join(unknown)}")
     twice = sorted({j for j in listed if listed.count(j) > 1})
     if twice:
         raise RobotError(f"{path}: joints listed twice in [arms] and extra_joints: {', '.join(twice)}")
+    home_table = _table(path, desc, "home", required=False)
+    home_angles = {j: _number(path, v, f"[home] {j}") for j, v in home_table.items()}
+    collision = _table(path, desc, "collision", required=False)
+    exclude = collision.get("exclude", [])
+    if not isinstance(exclude, list):
+        raise RobotError(f"{path}: [collision] exclude must be a list of [body, body] pairs, got {exclude!r}")
+    compiled = compile_model(
+        path,
+        source,
+        listed,
+        home_angles,
+        _table(path, desc, "base", required=False),
+        _table(path, desc, "sites", required=False),
+        exclude,
+        {str(k): str(v) for k, v in _table(path, desc, "package_dirs", required=False).items()},
+    )
+    model, mjcf = compiled.model, compiled.path
+    names = tuple(model.joint(i).name for i in range(model.njnt))
+    if model.nq != model.njnt or np.any(model.jnt_type != mujoco.mjtJoint.mjJNT_HINGE):
+        raise RobotError(f"{mjcf}: robot joints must all be hinges")
     manip = _table(path, desc, "manipulability", required=False)
     manip_site = _text(path, manip, "site", "tcp", "[manipulability] ")
     manip_joints = _names(path, manip, "joints", "[manipulability]", required=False)
@@ -208,16 +244,19 @@ def _build(path: Path, desc: dict) -> Robot:
     limited = model.jnt_limited.astype(bool)
     lower = np.where(limited, model.jnt_range[:, 0], -np.inf)
     upper = np.where(limited, model.jnt_range[:, 1], np.inf)
-    home = _home(path, desc, names, lower, upper)
-    velocity, velocity_source = _velocity_limits(path, desc, names)
+    home = _home(path, home_table, names, compiled.welded, lower, upper)
+    velocity, velocity_source = _velocity_limits(path, desc, names, compiled.velocity)
     mapping = _mapping(path, desc, names)
     missing = [j for s in SIDES for j in arms[s] if j not in {m.joint for m in mapping.joints}]
-    if missing:
-        raise RobotError(f"{path}: no mapping for arm joint(s): {', '.join(missing)}")
+    if missing and need_mapping:
+        raise RobotError(
+            f"{path}: no mapping for arm joint(s): {', '.join(missing)}; "
+            f"derive it with `hlik calibrate {path} --write`"
+        )
     return Robot(
         name=name,
         title=_text(path, desc, "title", path.stem),
-        mjcf=mjcf,
+        model_file=mjcf,
         model=model,
         joint_names=names,
         arm_joints=arms,
@@ -231,6 +270,7 @@ def _build(path: Path, desc: dict) -> Robot:
         manipulability_site=manip_site,
         manipulability_joints=manip_joints,
         placement=_placement_rule(path, desc),
+        description=path,
     )
 
 
@@ -272,10 +312,18 @@ def _number(path: Path, value: object, where: str) -> float:
     return float(value)
 
 
-def _home(path: Path, desc: dict, names: tuple[str, ...], lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
-    """(n,) home configuration from ``[home]`` (joints not listed at 0), within the joint limits."""
-    table = _table(path, desc, "home", required=False)
-    unknown = [j for j in table if j not in names]
+def _home(
+    path: Path,
+    table: dict,
+    names: tuple[str, ...],
+    welded: Mapping[str, float],
+    lower: np.ndarray,
+    upper: np.ndarray,
+) -> np.ndarray:
+    """(n,) home configuration from ``[home]`` (joints not listed at 0), within the joint limits.
+
+    ``[home]`` may also name welded joints: the angle they are welded at."""
+    unknown = [j for j in table if j not in names and j not in welded]
     if unknown:
         raise RobotError(f"{path}: [home] names joints not in the model: {', '.join(unknown)}")
     home = np.array([_number(path, table.get(n, 0.0), f"[home] {n}") for n in names])
@@ -329,10 +377,17 @@ def _placement_rule(path: Path, desc: dict) -> str:
     return rule
 
 
-def _velocity_limits(path: Path, desc: dict, names: tuple[str, ...]) -> tuple[np.ndarray, str]:
-    """(n,) joint speed limits in rad/s from ``[velocity_limits]`` (every joint, positive, finite)."""
-    table = dict(_table(path, desc, "velocity_limits"))
+def _velocity_limits(
+    path: Path, desc: dict, names: tuple[str, ...], from_model: Mapping[str, float]
+) -> tuple[np.ndarray, str]:
+    """(n,) joint speed limits in rad/s from ``[velocity_limits]`` (every joint, positive, finite);
+    a joint the table leaves out takes the URDF's ``<limit velocity>`` if the model gives one."""
+    table = dict(_table(path, desc, "velocity_limits", required=not from_model))
     source = str(table.pop("source", ""))
+    inherited = [n for n in names if n not in table and n in from_model]
+    table.update({n: from_model[n] for n in inherited})
+    if inherited:
+        source = "; ".join(filter(None, [source, f"URDF <limit velocity> of {len(inherited)} joints"]))
     missing = [n for n in names if n not in table]
     if missing:
         raise RobotError(f"{path}: [velocity_limits] has no value for: {', '.join(missing)}")

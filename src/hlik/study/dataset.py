@@ -53,7 +53,8 @@ class Cell:
         """``<take>__<robot>__<approach>__<seconds>s.parquet``: what a reused cell must match."""
         span = "all" if self.seconds is None else f"{self.seconds:g}"
         rate = "" if self.rate == 100.0 else f"__{self.rate:g}hz"
-        return f"{self.take.stem}__{self.robot}__{self.approach.key}__{span}s{rate}.parquet"
+        robot = Path(self.robot).stem  # a robot given by the path of its .toml
+        return f"{self.take.stem}__{robot}__{self.approach.key}__{span}s{rate}.parquet"
 
 
 def cell_motion(take: Path, seconds: float | None, rate: float) -> HumanMotion:

@@ -1,0 +1,434 @@
+"""Arm keypoints from other motion sources: joint positions of a pose estimator or a body-model fit,
+and BVH skeletons. :mod:`hlik.human.fit` turns them into MMM joint angles.
+
+A keypoint file is described by a small TOML (the file users pass to ``hlik run``)::
+
+    data = "trial1.txt"       # .csv/.txt (T, columns), .npy/.npz (T, J, 3), or .bvh; relative to the TOML
+    array = "joint_pos"       # .npz only: which array
+    names = "joint_names"     # .npz only, optional: an array of joint names, so [keypoints] may name them
+    rate = 30.0               # Hz (or ``times = <column>`` for a time stamp column of a table)
+    units = "m"               # m, cm, mm or in; checked against the arm lengths either way
+    up = "z"                  # the vertical axis: x, y, z, -x, -y, -z; detected if left out
+    floor = 0.0               # height of the floor along ``up``, file units; "auto" (the default) keeps a
+                              # plausible floor at 0 and otherwise stands the subject on one
+    lowpass = 6.0             # Hz, optional: a zero-phase Butterworth filter for noisy estimates
+    [keypoints]               # name -> first column of x, y, z (tables), joint index or name (arrays)
+    left_shoulder = 12
+    ...
+
+A BVH file is read as joint positions (its joints' world positions by forward kinematics, bvhio)
+and needs no description when its joints have the usual names (``LeftArm``, ``LeftForeArm``,
+``LeftHand``, ... as in CMU, LAFAN1, Mixamo or Xsens exports; :data:`BVH_NAMES`); otherwise a
+description names them (``data = "take.bvh"``, ``[keypoints] left_shoulder = "l_upperarm"``).
+
+Required: ``{left,right}_{shoulder,elbow,wrist}``. Optional: ``{left,right}_{index,pinky}``, the
+knuckles of the index and little finger, which give the hand's orientation (the TCP frame of
+``robots/README.md``: z from the wrist to the knuckles, x the palm normal).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from hlik.errors import HlikError, MotionFormatError
+from hlik.human.motion import RATE_RANGE
+from hlik.tomlfile import read_toml
+
+SIDES = ("left", "right")
+ARM_POINTS = ("shoulder", "elbow", "wrist")
+HAND_POINTS = ("index", "pinky")
+UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001, "in": 0.0254}
+# Upper arm plus forearm of adults, m: a sum outside it means the units are not what they were said
+# to be (about 0.45-0.65 m for heights of 1.45-2.0 m, with room for children and fitting noise).
+ARM_LENGTH = (0.25, 1.0)
+AXES = {"x": 0, "y": 1, "z": 2}
+
+
+@dataclass(frozen=True, eq=False)
+class Keypoints:
+    """Arm keypoints over time, in metres, in a z-up world; arm index 0 = left, 1 = right.
+
+    Attributes:
+        name: Motion name (the file's stem).
+        times: (T,) strictly increasing timestamps, s.
+        shoulder, elbow, wrist: (T, 2, 3) joint centres.
+        index, pinky: (T, 2, 3) the hand's index and little-finger knuckles, or None.
+        source: The file read.
+        notes: One-line remarks about the reading (detected axes and units, filled gaps).
+    """
+
+    name: str
+    times: np.ndarray
+    shoulder: np.ndarray
+    elbow: np.ndarray
+    wrist: np.ndarray
+    index: np.ndarray | None = None
+    pinky: np.ndarray | None = None
+    source: Path | None = None
+    notes: tuple[str, ...] = ()
+
+    @property
+    def n_frames(self) -> int:
+        return len(self.times)
+
+    def hand_frames(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """(T, 2, 3) hand points (between the knuckles) and (T, 2, 3, 3) hand orientations
+        (z = wrist to knuckles, x = palm normal), or None without knuckles."""
+        if self.index is None or self.pinky is None:
+            return None
+        knuckles = (self.index + self.pinky) / 2
+        z = _unit(knuckles - self.wrist)
+        across = self.index - self.pinky  # thumb side; the palm faces the body for left, x = -across x z
+        sign = np.array([1.0, -1.0])[None, :, None]
+        x = _unit(sign * np.cross(z, across))
+        y = np.cross(z, x)
+        return knuckles, np.stack([x, y, z], axis=-1)
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-12)
+
+
+def read_keypoints(path: Path) -> Keypoints:
+    """Read a keypoint description (``.toml``) and the array file it names.
+
+    Raises:
+        MotionFormatError: a missing or malformed description or data file, a keypoint or column
+            outside the data, units or an up axis that the arm lengths contradict, gaps that
+            cannot be filled (more than a fifth of the frames, or at the ends).
+    """
+    try:
+        desc = read_toml(path, "keypoint description")
+    except HlikError as e:
+        raise MotionFormatError(path, str(e).split(": ", 1)[-1]) from None
+    data_name = desc.get("data")
+    if not isinstance(data_name, str):
+        raise MotionFormatError(path, 'missing key data = "<file>" naming the keypoint array')
+    data = path.parent / data_name
+    table = desc.get("keypoints")
+    if not isinstance(table, dict):
+        raise MotionFormatError(path, "missing table [keypoints] (keypoint name -> column or joint index)")
+    names = [f"{s}_{p}" for s in SIDES for p in ARM_POINTS]
+    missing = [n for n in names if n not in table]
+    if missing:
+        raise MotionFormatError(path, f"[keypoints] lacks {', '.join(missing)}")
+    known = set(names) | {f"{s}_{p}" for s in SIDES for p in HAND_POINTS}
+    unknown = sorted(set(table) - known)
+    if unknown:
+        raise MotionFormatError(
+            path, f"[keypoints] {unknown[0]}: unknown keypoint; choose from {', '.join(sorted(known))}"
+        )
+    if data.suffix.lower() == ".bvh":
+        array, joint_names, rate = _read_bvh(path, data)
+        desc = {"rate": rate, **desc}
+    else:
+        array, joint_names = _load_array(path, data, desc)
+    points = {n: _column(path, array, n, table[n], joint_names) for n in table}
+    times = _times(path, desc, array)
+    return _assemble(path, data.stem, times, points, desc, data)
+
+
+# Usual BVH joint names of each keypoint (after any "prefix:" namespace), first match wins.
+BVH_NAMES = {
+    "shoulder": ("{S}Arm", "{S}UpperArm", "{s}_upperarm", "{s}_shoulder", "{s}humerus"),
+    "elbow": ("{S}ForeArm", "{S}LowerArm", "{s}_forearm", "{s}_elbow", "{s}radius"),
+    "wrist": ("{S}Hand", "{s}_hand", "{s}_wrist", "{s}wrist"),
+    "index": ("{S}HandIndex1", "{S}HandIndex", "{S}Index1"),
+    "pinky": ("{S}HandPinky1", "{S}HandPinky", "{S}Pinky1"),
+}
+
+
+def read_bvh(path: Path) -> Keypoints:
+    """Read a BVH file whose joints have the usual names (:data:`BVH_NAMES`).
+
+    Raises:
+        MotionFormatError: unreadable BVH, or a required keypoint none of whose names it has.
+    """
+    array, joint_names, rate = _read_bvh(path, path)
+    bare = [n.rsplit(":", 1)[-1] for n in joint_names]
+    table = {}
+    for side, S, s in (("left", "Left", "l"), ("right", "Right", "r")):
+        for point, patterns in BVH_NAMES.items():
+            found = [bare.index(p.format(S=S, s=s)) for p in patterns if p.format(S=S, s=s) in bare]
+            if found:
+                table[f"{side}_{point}"] = found[0]
+            elif point in ARM_POINTS:
+                raise MotionFormatError(
+                    path,
+                    f"no BVH joint for the {side} {point} "
+                    f"(tried {', '.join(p.format(S=S, s=s) for p in patterns)}); "
+                    "name it in a keypoint description (data = this file, [keypoints])",
+                )
+    points = {n: array[:, k] for n, k in table.items()}
+    times = np.arange(len(array)) / rate
+    return _assemble(path, path.stem, times, points, {}, path)
+
+
+def _read_bvh(path: Path, data: Path) -> tuple[np.ndarray, list[str], float]:
+    """(T, J, 3) world positions of a BVH's joints, their names and the frame rate."""
+    try:
+        import bvhio
+    except ImportError:
+        raise MotionFormatError(path, 'reading BVH needs bvhio: pip install -e ".[bvh]"') from None
+
+    try:
+        root = bvhio.readAsHierarchy(str(data))
+        container = bvhio.readAsBvh(str(data))
+    except Exception as e:  # bvhio raises bare exceptions on malformed files
+        raise MotionFormatError(path, f"cannot read BVH {data.name}: {' '.join(str(e).split())}") from None
+    joints = root.layout()
+    names = [j[0].Name for j in joints]
+    frames = container.FrameCount
+    if frames < 2 or not container.FrameTime > 0:
+        raise MotionFormatError(
+            path, f"{data.name}: {frames} frames at {container.FrameTime} s each; need two or more"
+        )
+    positions = np.empty((frames, len(joints), 3))
+    for k in range(frames):
+        root.loadPose(k)
+        for i, (joint, _, _) in enumerate(joints):
+            positions[k, i] = tuple(joint.PositionWorld)
+    return positions, names, 1.0 / container.FrameTime
+
+
+def _load_array(path: Path, data: Path, desc: Mapping) -> tuple[np.ndarray, list[str]]:
+    """The keypoint array and, if the description names them, its joints' names."""
+    if not data.is_file():
+        raise MotionFormatError(path, f"data file {data} not found")
+    suffix = data.suffix.lower()
+    joint_names: list[str] = []
+    try:
+        if suffix == ".npz":
+            with np.load(data) as arrays:
+                key = desc.get("array")
+                if key not in arrays:
+                    raise MotionFormatError(
+                        path, f"array = {key!r} is not in {data.name}; it has {', '.join(arrays)}"
+                    )
+                array = np.asarray(arrays[key], dtype=float)
+                if "names" in desc:
+                    if desc["names"] not in arrays:
+                        raise MotionFormatError(path, f"names = {desc['names']!r} is not in {data.name}")
+                    joint_names = [str(n) for n in arrays[desc["names"]]]
+        elif suffix == ".npy":
+            array = np.load(data).astype(float)
+        else:
+            delimiter = "," if suffix == ".csv" else None
+            array = np.loadtxt(data, delimiter=delimiter, ndmin=2)
+    except (ValueError, OSError) as e:
+        raise MotionFormatError(path, f"cannot read {data.name}: {' '.join(str(e).split())}") from None
+    if array.ndim not in (2, 3) or (array.ndim == 3 and array.shape[2] != 3):
+        raise MotionFormatError(
+            path, f"{data.name}: expected (T, columns) or (T, J, 3), got shape {array.shape}"
+        )
+    return array, joint_names
+
+
+def _column(path: Path, array: np.ndarray, name: str, where: object, joint_names: list[str]) -> np.ndarray:
+    """(T, 3) positions of keypoint ``name``: columns where..where+2 of a table, or joint ``where``
+    (an index, or a name of ``joint_names``)."""
+    if isinstance(where, str) and joint_names:
+        if where not in joint_names:
+            raise MotionFormatError(
+                path, f"[keypoints] {name} = {where!r}: no such joint; the file has {', '.join(joint_names)}"
+            )
+        where = joint_names.index(where)
+    if isinstance(where, bool) or not isinstance(where, int) or where < 0:
+        raise MotionFormatError(
+            path, f"[keypoints] {name} must be a column or joint index >= 0, got {where!r}"
+        )
+    if array.ndim == 3:
+        if where >= array.shape[1]:
+            raise MotionFormatError(
+                path, f"[keypoints] {name} = {where}: the array has {array.shape[1]} joints"
+            )
+        return array[:, where]
+    if where + 3 > array.shape[1]:
+        raise MotionFormatError(path, f"[keypoints] {name} = {where}: the table has {array.shape[1]} columns")
+    return array[:, where : where + 3]
+
+
+def _times(path: Path, desc: Mapping, array: np.ndarray) -> np.ndarray:
+    rate = desc.get("rate")
+    if isinstance(rate, bool) or not isinstance(rate, int | float) or not math.isfinite(rate):
+        raise MotionFormatError(path, f"rate must be the frame rate in Hz, got {rate!r}")
+    if not RATE_RANGE[0] <= rate <= RATE_RANGE[1]:
+        raise MotionFormatError(path, f"rate = {rate} Hz is outside {RATE_RANGE[0]:g}-{RATE_RANGE[1]:g} Hz")
+    return np.arange(len(array)) / float(rate)
+
+
+def _assemble(
+    path: Path, name: str, times: np.ndarray, points: dict[str, np.ndarray], desc: Mapping, data: Path
+) -> Keypoints:
+    """Units, up axis and gaps of the named points (T, 3) in the file's units and axes."""
+    notes = []
+    stacked = np.stack(list(points.values()))  # (K, T, 3)
+    bad = ~np.all(np.isfinite(stacked), axis=(0, 2))
+    if bad.all():
+        raise MotionFormatError(path, f"{data.name}: no frame has every keypoint")
+    if bad.any():
+        if bad.mean() > 0.2 or bad[0] or bad[-1]:
+            raise MotionFormatError(
+                path,
+                f"{data.name}: {bad.sum()} of {len(bad)} frames lack keypoints (NaN), first at "
+                f"{times[np.argmax(bad)]:.2f} s; too many or at an end to fill, cut or repair them",
+            )
+        good = np.flatnonzero(~bad)
+        for key, value in points.items():
+            points[key] = np.stack([np.interp(times, times[good], value[good, k]) for k in range(3)], axis=1)
+        notes.append(f"{path}: {data.name}: {bad.sum()} frames with NaN keypoints, interpolated")
+    scale = _units(path, desc, points)
+    up = _up_axis(path, desc, points, notes)
+    rot = _z_up(up)
+    arrays = {k: (v * scale) @ rot.T for k, v in points.items()}
+    lift = _floor(path, desc, arrays, scale, notes)
+    arrays = {k: v + [0.0, 0.0, lift] for k, v in arrays.items()}
+    cutoff = desc.get("lowpass")
+    if cutoff is not None:
+        arrays = _lowpass(
+            path, arrays, cutoff, 1.0 / float(np.median(np.diff(times))) if len(times) > 1 else 0.0
+        )
+
+    def pair(point: str) -> np.ndarray | None:
+        if f"left_{point}" not in arrays or f"right_{point}" not in arrays:
+            return None
+        return np.stack([arrays[f"left_{point}"], arrays[f"right_{point}"]], axis=1)
+
+    return Keypoints(
+        name=name,
+        times=times,
+        shoulder=pair("shoulder"),  # type: ignore[arg-type]
+        elbow=pair("elbow"),  # type: ignore[arg-type]
+        wrist=pair("wrist"),  # type: ignore[arg-type]
+        index=pair("index"),
+        pinky=pair("pinky"),
+        source=path,
+        notes=tuple(notes),
+    )
+
+
+# Shoulder heights (m) of a person standing or sitting on the floor at z = 0; outside them the file's
+# origin is not on the floor (a camera frame) and the subject is stood on one.
+SHOULDER_HEIGHT = (0.6, 2.0)
+STANDING_SHOULDER = 0.818  # of the height, the MMM model's (kinematics.md §1.1)
+
+
+def _floor(
+    path: Path, desc: Mapping, arrays: Mapping[str, np.ndarray], scale: float, notes: list[str]
+) -> float:
+    """How far (m) to lift the points so that the floor is at z = 0."""
+    floor = desc.get("floor", "auto")
+    if floor != "auto":
+        if isinstance(floor, bool) or not isinstance(floor, int | float) or not math.isfinite(floor):
+            raise MotionFormatError(
+                path, f'floor = {floor!r}; give its height in the file\'s units, or "auto"'
+            )
+        return -float(floor) * scale
+    shoulder = float(
+        np.median(np.concatenate([arrays["left_shoulder"][:, 2], arrays["right_shoulder"][:, 2]]))
+    )
+    if SHOULDER_HEIGHT[0] <= shoulder <= SHOULDER_HEIGHT[1]:
+        return 0.0
+    height = arm_length(arrays) / 0.333  # the MMM model's arm over its height
+    lift = STANDING_SHOULDER * height - shoulder
+    notes.append(
+        f"{path}: shoulders {shoulder:.2f} m above the file's origin, not a floor; "
+        "the subject is stood on one "
+        f"(lifted {lift:+.2f} m; give floor = ... to place it)"
+    )
+    return lift
+
+
+def _lowpass(
+    path: Path, arrays: Mapping[str, np.ndarray], cutoff: object, rate: float
+) -> dict[str, np.ndarray]:
+    from scipy.signal import butter, filtfilt
+
+    if isinstance(cutoff, bool) or not isinstance(cutoff, int | float) or not 0 < cutoff < rate / 2:
+        raise MotionFormatError(
+            path, f"lowpass = {cutoff!r}: give a cutoff in Hz below half the rate ({rate / 2:g} Hz)"
+        )
+    b, a = butter(2, cutoff / (rate / 2))
+    if min(len(v) for v in arrays.values()) <= 3 * max(len(a), len(b)):
+        raise MotionFormatError(path, "lowpass: too few frames to filter")
+    return {k: filtfilt(b, a, v, axis=0) for k, v in arrays.items()}
+
+
+def arm_length(points: Mapping[str, np.ndarray]) -> float:
+    """Median upper arm plus forearm over both arms and all frames, in the points' units."""
+    lengths = [
+        np.linalg.norm(points[f"{s}_elbow"] - points[f"{s}_shoulder"], axis=1)
+        + np.linalg.norm(points[f"{s}_wrist"] - points[f"{s}_elbow"], axis=1)
+        for s in SIDES
+    ]
+    return float(np.median(np.concatenate(lengths)))
+
+
+def _units(path: Path, desc: Mapping, points: Mapping[str, np.ndarray]) -> float:
+    """Metres per unit of the file: the given ``units``, checked, or the one that gives an adult arm."""
+    length = arm_length(points)
+    given = desc.get("units")
+    if given is not None:
+        if given not in UNITS:
+            raise MotionFormatError(path, f"units = {given!r}; choose from {', '.join(UNITS)}")
+        metres = length * UNITS[given]
+        if not ARM_LENGTH[0] <= metres <= ARM_LENGTH[1]:
+            fits = [u for u, f in UNITS.items() if ARM_LENGTH[0] <= length * f <= ARM_LENGTH[1]]
+            hint = f"; the lengths fit units = {fits[0]!r}" if fits else ""
+            raise MotionFormatError(
+                path,
+                f"units = {given!r} gives arms (upper arm + forearm) of {metres:.3g} m, not a person's{hint}",
+            )
+        return UNITS[given]
+    fits = [u for u, f in UNITS.items() if ARM_LENGTH[0] <= length * f <= ARM_LENGTH[1]]
+    if len(fits) != 1:
+        raise MotionFormatError(
+            path,
+            f"arms (upper arm + forearm) measure {length:.3g} in the file's units; "
+            f"give units = one of {', '.join(UNITS)}",
+        )
+    return UNITS[fits[0]]
+
+
+def _up_axis(path: Path, desc: Mapping, points: Mapping[str, np.ndarray], notes: list[str]) -> str:
+    """The file's vertical axis: given as ``up``, or the axis along which the shoulders are above the
+    elbows on average (true of a person standing or sitting at a task)."""
+    down = np.concatenate([points[f"{s}_shoulder"] - points[f"{s}_elbow"] for s in SIDES])
+    mean = np.nanmean(down, axis=0) / max(float(np.nanmean(np.linalg.norm(down, axis=1))), 1e-12)
+    k = int(np.argmax(np.abs(mean)))
+    detected = ("-" if mean[k] < 0 else "") + "xyz"[k]
+    given = desc.get("up")
+    if given is None:
+        if abs(mean[k]) < 0.3:
+            raise MotionFormatError(
+                path, "cannot tell the vertical axis from the arms; give up = x, y, z, -x, -y or -z"
+            )
+        notes.append(f"{path}: up axis detected as {detected} (the shoulders above the elbows)")
+        return detected
+    if not isinstance(given, str) or given.lstrip("-") not in AXES or given.count("-") > 1:
+        raise MotionFormatError(path, f"up = {given!r}; choose from x, y, z, -x, -y, -z")
+    if given != detected and abs(mean[k]) > 0.5:
+        raise MotionFormatError(
+            path,
+            f"up = {given!r}, but the elbows hang below the shoulders along {detected}; "
+            f"is up = {detected!r}?",
+        )
+    return given
+
+
+def _z_up(up: str) -> np.ndarray:
+    """(3, 3) proper rotation taking the file's axis ``up`` to +z."""
+    k, sign = AXES[up.lstrip("-")], -1.0 if up.startswith("-") else 1.0
+    if k == 2:
+        return np.diag([1.0, sign, sign])  # z or -z (a half turn about x)
+    rot = np.zeros((3, 3))
+    rot[2, k] = sign  # new z = the up axis
+    other = [i for i in range(3) if i != k]
+    rot[0, other[0]] = 1.0
+    rot[1] = np.cross(rot[2], rot[0])
+    return rot

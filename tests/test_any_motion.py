@@ -1,0 +1,217 @@
+"""Motion from other sources: keypoint arrays and BVH, fitted to the MMM model (issue 17)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from conftest import data_file
+from hlik.errors import MotionFormatError
+from hlik.human import forward_kinematics, load_motion
+from hlik.human.fit import fit_error, fit_mmm
+from hlik.human.keypoints import Keypoints, read_bvh, read_keypoints
+from hlik.human.motion import ARM_JOINTS
+
+ARM = [j for side in ("left", "right") for j in ARM_JOINTS[side]]
+HUMAN_ASSEMBLY = """data = "{data}"
+rate = 30
+{extra}
+[keypoints]
+left_wrist = 0
+right_wrist = 3
+left_elbow = 6
+right_elbow = 9
+left_shoulder = 12
+right_shoulder = 15
+"""
+
+
+def _knuckles(fk) -> tuple[np.ndarray, np.ndarray]:
+    """Index and little-finger knuckles that give exactly the MMM TCP frame (keypoints.hand_frames)."""
+    sign = np.array([1.0, -1.0])[None, :, None]
+    knuckles = fk.wrist + 0.08 * fk.tcp_rot[..., 2]
+    across = -sign * fk.tcp_rot[..., 1]
+    return knuckles + 0.04 * across, knuckles - 0.04 * across
+
+
+def test_fit_reproduces_kit_takes_from_their_keypoints(takes):
+    """Round trip on the real takes: MMM FK keypoints -> fit (height estimated) -> the keypoints to
+    <= 1 cm and the arm joint angles to <= 0.1 rad, median (the issue's bound)."""
+    for take in takes:
+        motion = load_motion(take)
+        fk = forward_kinematics(motion)
+        index, pinky = _knuckles(fk)
+        keypoints = Keypoints(motion.name, motion.times, fk.shoulder, fk.elbow, fk.wrist, index, pinky)
+        fitted = fit_mmm(keypoints)
+        assert abs(fitted.height - motion.height) < 0.01, take.name
+        again = forward_kinematics(fitted)
+        points = np.concatenate(
+            [again.elbow - fk.elbow, again.wrist - fk.wrist, again.tcp_pos - fk.tcp_pos], axis=1
+        )
+        assert np.median(np.linalg.norm(points, axis=-1)) <= 0.01, take.name
+        assert np.median(np.abs(fitted.angles(ARM) - motion.angles(ARM))) <= 0.1, take.name
+        assert np.median(fit_error(fitted)) <= 0.01
+
+
+def test_fit_is_invariant_to_moving_and_turning_the_keypoints(takes):
+    motion = load_motion(takes[0]).frames(slice(0, 30))
+    fk = forward_kinematics(motion)
+    turn = Rotation.from_euler("z", 1.1)
+    shift = np.array([0.7, -2.0, 0.0])
+    moved = [turn.apply(p.reshape(-1, 3)).reshape(p.shape) + shift for p in (fk.shoulder, fk.elbow, fk.wrist)]
+    a = fit_mmm(Keypoints("a", motion.times, fk.shoulder, fk.elbow, fk.wrist))
+    b = fit_mmm(Keypoints("b", motion.times, *moved))
+    np.testing.assert_allclose(a.angles(ARM), b.angles(ARM), atol=1e-4)
+
+
+def _assembly(tmp_path: Path, relative: str, extra: str = "") -> Path:
+    desc = tmp_path / "take.toml"
+    desc.write_text(HUMAN_ASSEMBLY.format(data=data_file(relative), extra=extra))
+    return desc
+
+
+def test_human_assembly_keypoints_are_fitted(tmp_path):
+    """Real OpenPose keypoints (camera frame, y down): axis and floor found, the arms fitted."""
+    motion = load_motion(_assembly(tmp_path, "human_assembly/Task1/Human1/trial1.txt"))
+    notes = "\n".join(motion.notes)
+    assert "up axis detected as -y" in notes and "stood on one" in notes
+    error = fit_error(motion)
+    assert error is not None and np.median(error) < 0.06
+    assert np.all(np.isfinite(motion.joints))
+    assert 1.2 < motion.height < 2.0
+
+
+def test_keypoints_with_nan_are_interpolated_never_passed_on(tmp_path):
+    motion = load_motion(_assembly(tmp_path, "human_assembly/Task3/Human2/trial2.txt"), rate=100)
+    assert any("NaN keypoints, interpolated" in n for n in motion.notes)
+    assert np.all(np.isfinite(motion.joints)) and np.all(np.isfinite(motion.root_position))
+
+
+def test_keypoints_in_wrong_units_are_caught(tmp_path):
+    table = np.loadtxt(data_file("human_assembly/Task1/Human1/trial1.txt"))
+    mm = tmp_path / "mm.csv"
+    np.savetxt(mm, table * 1000, delimiter=",")
+    desc = tmp_path / "take.toml"
+    desc.write_text(HUMAN_ASSEMBLY.format(data=mm, extra='units = "m"'))
+    with pytest.raises(MotionFormatError, match=r"take.toml: units = 'm' gives arms .* fit units = 'mm'"):
+        read_keypoints(desc)
+    desc.write_text(HUMAN_ASSEMBLY.format(data=mm, extra=""))  # detected
+    reference = read_keypoints(_assembly(tmp_path / "..", "human_assembly/Task1/Human1/trial1.txt"))
+    np.testing.assert_allclose(read_keypoints(desc).wrist, reference.wrist, atol=1e-9)
+
+
+@pytest.mark.parametrize(
+    ("extra", "message"),
+    [
+        ('up = "z"', r"up = 'z', but the elbows hang below the shoulders along -y"),
+        ("rate = 0.1", r"rate = 0.1 Hz is outside"),
+        ('units = "furlong"', r"units = 'furlong'; choose from"),
+        ("lowpass = 40", r"lowpass = 40: give a cutoff in Hz below half the rate"),
+    ],
+)
+def test_bad_keypoint_descriptions_are_refused(tmp_path, extra, message):
+    desc = _assembly(tmp_path, "human_assembly/Task1/Human1/trial1.txt", extra)
+    if extra.startswith("rate"):
+        desc.write_text(desc.read_text().replace("rate = 30\n", "", 1))
+    with pytest.raises(MotionFormatError, match=message):
+        read_keypoints(desc)
+
+
+def test_smplh_joint_positions_with_hands(tmp_path):
+    """OMOMO SMPL-H joint positions, joints named in the file: hands give the wrist's orientation."""
+    data = data_file("omomo_holosoma/sub3_largebox_003.npz")
+    names = {
+        "left_shoulder": "L_Shoulder", "right_shoulder": "R_Shoulder", "left_elbow": "L_Elbow",
+        "right_elbow": "R_Elbow", "left_wrist": "L_Wrist", "right_wrist": "R_Wrist",
+        "left_index": "L_Index1", "left_pinky": "L_Pinky1",
+        "right_index": "R_Index1", "right_pinky": "R_Pinky1",
+    }  # fmt: skip
+    desc = tmp_path / "box.toml"
+    table = "\n".join(f'{k} = "{v}"' for k, v in names.items())
+    desc.write_text(
+        f'data = "{data}"\narray = "joint_pos"\nnames = "joint_names"\nrate = 30\n[keypoints]\n{table}\n'
+    )
+    keypoints = read_keypoints(desc)
+    assert keypoints.index is not None and keypoints.hand_frames() is not None
+    motion = fit_mmm(keypoints)
+    assert np.median(fit_error(motion)) < 0.06
+    hand = forward_kinematics(motion).tcp_rot
+    wanted = keypoints.hand_frames()[1]
+    angle = np.degrees(Rotation.from_matrix(np.swapaxes(hand, -1, -2) @ wanted).magnitude())
+    assert np.median(angle) < 25  # the MMM wrist's range and a rigid SMPL-H hand allow no better
+
+
+BVH_ARM = """    JOINT {S}Shoulder
+    {{
+      OFFSET {x4} 40.0 0.0
+      CHANNELS 3 Zrotation Xrotation Yrotation
+      JOINT {S}Arm
+      {{
+        OFFSET {x14} 0.0 0.0
+        CHANNELS 3 Zrotation Xrotation Yrotation
+        JOINT {S}ForeArm
+        {{
+          OFFSET 0.0 -30.0 0.0
+          CHANNELS 3 Zrotation Xrotation Yrotation
+          JOINT {S}Hand
+          {{
+            OFFSET 0.0 -25.0 0.0
+            CHANNELS 3 Zrotation Xrotation Yrotation
+            End Site
+            {{
+              OFFSET 0.0 -8.0 0.0
+            }}
+          }}
+        }}
+      }}
+    }}
+"""
+
+
+def _bvh(path: Path, frames: np.ndarray) -> None:
+    """A Y-up BVH in cm (the usual export), facing +z, left arm towards +x."""
+    arms = BVH_ARM.format(S="Left", x4=4.0, x14=14.0) + BVH_ARM.format(S="Right", x4=-4.0, x14=-14.0)
+    head = (
+        "HIERARCHY\nROOT Hips\n{\n  OFFSET 0.0 0.0 0.0\n"
+        "  CHANNELS 6 Xposition Yposition Zposition Zrotation Xrotation Yrotation\n"
+        "  JOINT Spine\n  {\n    OFFSET 0.0 10.0 0.0\n    CHANNELS 3 Zrotation Xrotation Yrotation\n"
+    )
+    motion = f"MOTION\nFrames: {len(frames)}\nFrame Time: 0.0333333\n"
+    rows = "\n".join(" ".join(f"{v:.5f}" for v in f) for f in frames)
+    path.write_text(head + arms + "  }\n}\n" + motion + rows + "\n")
+
+
+def test_bvh_angles_come_back_as_mmm_angles(tmp_path):
+    """Known BVH rotations (shoulder flexion, elbow flexion) are the MMM angles the fit finds."""
+    pytest.importorskip("bvhio", reason='reading BVH needs bvhio: pip install -e ".[bvh]"')
+    n = 20
+    lift = np.linspace(0.0, 60.0, n)
+    frames = np.zeros((n, 6 + 3 + 24))
+    frames[:, 1] = 95.0  # the hips, cm above the floor
+    frames[:, 13] = -lift  # LeftArm, X: forward
+    frames[:, 16] = -lift  # LeftForeArm, X: elbow flexion
+    frames[:, 25] = -lift / 2  # RightArm, X
+    path = tmp_path / "lift.bvh"
+    _bvh(path, frames)
+    keypoints = read_bvh(path)
+    assert any("up axis detected as y" in n for n in keypoints.notes)
+    assert np.allclose(
+        np.linalg.norm(keypoints.elbow - keypoints.shoulder, axis=-1), 0.30, atol=1e-5
+    )  # cm -> m
+    motion = load_motion(path)
+    rad = np.radians(lift)
+    np.testing.assert_allclose(motion.joint("LSx_joint"), rad, atol=0.05)
+    np.testing.assert_allclose(motion.joint("LEx_joint"), rad, atol=0.05)
+    np.testing.assert_allclose(motion.joint("RSx_joint"), rad / 2, atol=0.05)
+
+
+def test_bvh_without_usual_names_says_how_to_name_them(tmp_path):
+    pytest.importorskip("bvhio", reason='reading BVH needs bvhio: pip install -e ".[bvh]"')
+    path = tmp_path / "odd.bvh"
+    _bvh(path, np.zeros((3, 33)))
+    path.write_text(path.read_text().replace("LeftForeArm", "l_lowerleg_oops"))
+    with pytest.raises(MotionFormatError, match=r"no BVH joint for the left elbow .*\[keypoints\]"):
+        read_bvh(path)

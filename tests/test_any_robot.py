@@ -1,0 +1,188 @@
+"""Robots from elsewhere: a URDF or MJCF plus a TOML, compiled with MjSpec (issue 17). The worked
+example is the Unitree G1 of the pip package example-robot-data (the ``g1`` extra)."""
+
+from __future__ import annotations
+
+import os
+import shutil
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from hlik.cli import app
+from hlik.errors import RobotError
+from hlik.fk import site_poses
+from hlik.paths import robots_dir
+from hlik.robot.collision import collision_pairs
+from hlik.robot.model import COLLISION_GROUP, SIDES, SITES, load_robot, self_contacts
+from hlik.robot.model_file import resolve_package
+
+G1 = robots_dir() / "examples" / "g1.toml"
+
+
+@pytest.fixture(scope="module")
+def g1():
+    try:
+        resolve_package("package://example-robot-data/", G1, {})
+    except RobotError as e:
+        if os.environ.get("CI", "").lower() == "true":
+            pytest.fail(str(e))
+        pytest.skip(f'{e} (pip install -e ".[g1]")')
+    return load_robot(str(G1))
+
+
+def test_g1_is_compiled_for_hlik(g1):
+    """Legs and waist welded, the sites added, collision geoms where hlik looks, URDF speed limits."""
+    assert g1.dof == 14 and g1.joint_names == g1.arm_joints["left"] + g1.arm_joints["right"]
+    for side in SIDES:
+        for site in SITES:
+            g1.site_id(side, site)
+    m = g1.model
+    colliding = (m.geom_contype | m.geom_conaffinity) > 0
+    assert np.all(m.geom_group[colliding] == COLLISION_GROUP) and np.any(
+        m.geom_type == mujoco.mjtGeom.mjGEOM_MESH
+    )
+    assert not self_contacts(g1, g1.home) and len(collision_pairs(g1)) > 50
+    np.testing.assert_allclose(g1.velocity_limit[g1.index("left_wrist_pitch_joint")], 22.0)
+    assert "URDF <limit velocity>" in g1.velocity_source
+    # standing on the floor, facing +y: the left shoulder on the left (-x), the hands in front
+    pos, _ = site_poses(m, g1.home[None], g1.site_ids[:, [0, 3]].reshape(-1))
+    left_shoulder, left_tcp, right_shoulder, _ = pos[0]
+    assert left_shoulder[0] < 0 < right_shoulder[0] and 1.0 < left_shoulder[2] < 1.2 and left_tcp[1] > 0.15
+
+
+def test_calibrate_writes_the_mapping_the_example_carries(g1, tmp_path):
+    """`hlik calibrate X.toml --write` on a copy without mapping derives the stored one."""
+    copy = tmp_path / "g1.toml"
+    text = G1.read_text()
+    copy.write_text(text[: text.index("[mapping.left]")])
+    with pytest.raises(RobotError, match=r"no mapping for arm joint\(s\).*hlik calibrate .* --write"):
+        load_robot(str(copy))
+    result = CliRunner().invoke(app, ["calibrate", str(copy), "--write"])
+    assert result.exit_code == 0, result.output
+    assert load_robot(str(copy)).mapping == g1.mapping
+    assert "matches" in CliRunner().invoke(app, ["calibrate", str(copy)]).output
+
+
+def _armar3_copy(tmp_path: Path, edit) -> Path:
+    """robots/armar3.toml beside a copy of its model, edited by ``edit(text) -> text``."""
+    (tmp_path / "mjcf").mkdir(exist_ok=True)
+    shutil.copy(robots_dir() / "mjcf" / "armar3.xml", tmp_path / "mjcf" / "armar3.xml")
+    path = tmp_path / "mine.toml"
+    path.write_text(edit((robots_dir() / "armar3.toml").read_text()))
+    return path
+
+
+def test_a_joint_left_out_is_welded_at_its_home_angle(tmp_path):
+    """Welding the hip yaw at 0.3 rad gives the TCPs of the full model with the hip at 0.3 rad."""
+    full = load_robot("armar3")
+    path = _armar3_copy(
+        tmp_path,
+        lambda t: (
+            t.replace('extra_joints = ["HipPitch", "HipYaw"]', 'extra_joints = ["HipPitch"]')
+            .replace("[home]", "[home]\nHipYaw = 0.3", 1)
+            .replace('joints = ["HipPitch", "HipYaw"]', 'joints = ["HipPitch"]')
+        ),
+    )
+    text = path.read_text()
+    text = "\n".join(line for line in text.splitlines() if not line.startswith("HipYaw = ") or "0.3" in line)
+    path.write_text(text)
+    welded = load_robot(str(path))
+    assert "HipYaw" not in welded.joint_names and welded.dof == full.dof - 1
+    rng = np.random.default_rng(3)
+    q = np.clip(full.home + rng.normal(0, 0.3, (5, full.dof)), full.lower, full.upper)
+    q[:, full.index("HipYaw")] = 0.3
+    keep = full.index(welded.joint_names)
+    a, _ = site_poses(full.model, q, full.site_ids.reshape(-1))
+    b, _ = site_poses(welded.model, q[:, keep], welded.site_ids.reshape(-1))
+    np.testing.assert_allclose(a, b, atol=1e-9)
+
+
+def test_base_pose_turns_and_lifts_the_whole_robot(tmp_path):
+    full = load_robot("armar3")
+    path = _armar3_copy(tmp_path, lambda t: t + "\n[base]\npos = [0.1, -0.2, 0.3]\nrpy = [0.0, 0.0, 0.5]\n")
+    moved = load_robot(str(path))
+    a, _ = site_poses(full.model, full.home[None], full.site_ids.reshape(-1))
+    b, _ = site_poses(moved.model, moved.home[None], moved.site_ids.reshape(-1))
+    c, s = np.cos(0.5), np.sin(0.5)
+    turn = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
+    np.testing.assert_allclose(b[0], a[0] @ turn.T + [0.1, -0.2, 0.3], atol=1e-9)
+
+
+@pytest.mark.parametrize(
+    ("edit", "message"),
+    [
+        (lambda t: t.replace('"mjcf/armar3.xml"', '"package://no-such-pkg/armar3.xml"'),
+         r"mine.toml: package 'no-such-pkg' .* \[package_dirs\] no-such-pkg ="),
+        (lambda t: t.replace('"mjcf/armar3.xml"', '"mjcf/armar9.xml"'),
+         r"mine.toml: model 'mjcf/armar9.xml' not found"),
+        (lambda t: t.replace('"HipPitch", "HipYaw"]', '"HipPitch", "Hip_Yaw"]', 1),
+         r"joints not in the model armar3.xml: Hip_Yaw"),
+        (lambda t: t + '\n[sites]\nx_site = { body = "no_body" }\n', r"\[sites\] x_site: no body 'no_body'"),
+        (lambda t: t + '\n[sites]\nleft_tcp = { body = "base" }\n', r"already has a site left_tcp"),
+        (lambda t: t + '\n[collision]\nexclude = [["base"]]\n',
+         r"\[collision\] exclude entries must be \[body, body\]"),
+        (lambda t: t + '\n[base]\nrpy = [0, 0]\n', r"\[base\] rpy must be three finite numbers"),
+    ],
+)  # fmt: skip
+def test_foreign_model_mistakes_are_one_line_naming_the_file(tmp_path, edit, message):
+    with pytest.raises(RobotError, match=message):
+        load_robot(str(_armar3_copy(tmp_path, edit)))
+
+
+def test_a_missing_mesh_names_the_urdf_and_the_mesh(tmp_path, g1):
+    urdf = g1.model_file
+    copy = tmp_path / "urdf" / urdf.name
+    copy.parent.mkdir()
+    copy.write_text(
+        urdf.read_text().replace("package://example-robot-data/robots/g1_description/meshes/", "../meshes/")
+    )
+    toml = tmp_path / "g1.toml"
+    toml.write_text(
+        G1.read_text().replace(
+            f'"package://example-robot-data/robots/g1_description/urdf/{urdf.name}"', f'"urdf/{urdf.name}"'
+        )
+    )
+    with pytest.raises(RobotError, match=rf"{urdf.name}: mesh '../meshes/pelvis.STL' not found"):
+        load_robot(str(toml))
+
+
+@pytest.mark.parametrize("solver", ["jm", "jv", "qp", "slsqp"])
+def test_g1_runs_every_solver_on_a_bvh_and_evaluates(g1, tmp_path, solver):
+    """The whole pipeline on the worked example: BVH in, recording and scores out."""
+    pytest.importorskip("bvhio")
+    from test_any_motion import _bvh
+
+    n = 15
+    frames = np.zeros((n, 33))
+    frames[:, 1] = 95.0
+    frames[:, 13] = frames[:, 16] = -np.linspace(20, 70, n)
+    frames[:, 25] = frames[:, 28] = -np.linspace(20, 50, n)
+    motion = tmp_path / "reach.bvh"
+    _bvh(motion, frames)
+    runner = CliRunner()
+    out = tmp_path / "g1.rrd"
+    args = ["run", str(motion), "--robot", str(G1), "--solver", solver, "-o", str(out)]
+    args += ["--criteria", "SYN,HJA_r"] if solver in ("qp", "slsqp") else []
+    result = runner.invoke(app, args)
+    assert result.exit_code == 0, result.output
+    assert out.stat().st_size > 1e6  # the meshes are in it
+    evaluated = runner.invoke(app, ["evaluate", str(out.with_suffix(".npz")), "--json"])
+    assert evaluated.exit_code == 0, evaluated.output
+    assert '"m_hl"' in evaluated.output
+
+
+def test_a_study_runs_on_the_g1(g1, tmp_path):
+    from hlik.paths import demo_motion_path as demo
+    from hlik.study.approaches import Approach
+    from hlik.study.runner import run_study
+
+    approaches = (Approach("jm", correlation=True), Approach("qp", correlation=True))
+    result = run_study([demo()], [str(G1)], approaches, tmp_path, seconds=0.5, workers=1)
+    assert not any(o.error for o in result.outcomes)
+    assert sorted(p.name for p in (tmp_path / "cells").glob("*.parquet"))[0].startswith(
+        "demo_pour_wipe__g1__"
+    )
