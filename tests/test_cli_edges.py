@@ -280,7 +280,7 @@ def test_a_qp_backend_must_be_installed():
 def _robot_text() -> str:
     """ARMAR-6's description, its model named by absolute path so that a copy loads anywhere."""
     text = (robots_dir() / "armar6.toml").read_text()
-    return text.replace('mjcf = "mjcf/armar6.xml"', f'mjcf = "{robots_dir() / "mjcf/armar6.xml"}"')
+    return text.replace('model = "mjcf/armar6.xml"', f'model = "{robots_dir() / "mjcf/armar6.xml"}"')
 
 
 ROBOT_FAULTS = {
@@ -304,8 +304,11 @@ ROBOT_FAULTS = {
         lambda t: t.replace('joints = ["ArmL1_Cla1"', 'joints = "ArmL1_Cla1"  # ["ArmL1_Cla1"'),
         "arms.left joints",
     ),
-    "mjcf missing": (lambda t: re.sub(r"mjcf = .*\n", "", t), "'mjcf'"),
-    "mjcf not a file": (lambda t: re.sub(r"mjcf = .*\n", 'mjcf = "nowhere.xml"\n', t), "cannot load MJCF"),
+    "model missing": (lambda t: re.sub(r"model = .*\n", "", t), "missing key 'model'"),
+    "model not a file": (
+        lambda t: re.sub(r"model = .*\n", 'model = "nowhere.xml"\n', t),
+        "model 'nowhere.xml' not found",
+    ),
     "mapping gain text": (lambda t: t.replace("gain = 0.147", 'gain = "x"'), "offset gain"),
     "mapping not a table": (
         lambda t: t.replace("ArmL1_Cla1 = { a = 0.0, b = 0.0 }", "ArmL1_Cla1 = 3"),

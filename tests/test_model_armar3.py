@@ -339,7 +339,7 @@ def test_tcp_frame_convention(model):
 def test_toml(model, desc):
     assert desc["name"] == "armar3"
     assert desc["title"] == "ARMAR-III"
-    assert (TOML.parent / desc["mjcf"]).resolve() == MJCF
+    assert (TOML.parent / desc["model"]).resolve() == MJCF
     assert desc["extra_joints"] == ["HipPitch", "HipYaw"]
     assert desc["unlimited_joints"] == []
     joint_names = {model.joint(i).name for i in range(model.njnt)}

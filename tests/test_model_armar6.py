@@ -249,7 +249,7 @@ def desc():
 
 def test_toml(desc, model):
     assert desc["name"] == "armar6" and desc["title"] == "ARMAR-6"
-    assert (TOML.parent / desc["mjcf"]).resolve() == MJCF
+    assert (TOML.parent / desc["model"]).resolve() == MJCF
     assert desc["extra_joints"] == []
     assert desc["arms"]["left"]["joints"] == LEFT
     assert desc["arms"]["right"]["joints"] == RIGHT

@@ -236,7 +236,7 @@ def test_toml(model):
     with TOML.open("rb") as f:
         cfg = tomllib.load(f)
     assert cfg["name"] == "dual_panda" and cfg["title"] == "2-Panda"
-    assert (TOML.parent / cfg["mjcf"]).resolve() == XML
+    assert (TOML.parent / cfg["model"]).resolve() == XML
     assert cfg["extra_joints"] == [] and cfg["unlimited_joints"] == []
     for s in SIDES:
         joints = [f"{s}_joint{k}" for k in range(1, 8)]

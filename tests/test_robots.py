@@ -214,7 +214,7 @@ def test_bad_velocity_limits_are_refused(tmp_path, edit, message):
     from hlik.paths import robots_dir
 
     text = (robots_dir() / "armar6.toml").read_text()
-    text = text.replace('mjcf = "mjcf/armar6.xml"', f'mjcf = "{robots_dir() / "mjcf/armar6.xml"}"')
+    text = text.replace('model = "mjcf/armar6.xml"', f'model = "{robots_dir() / "mjcf/armar6.xml"}"')
     path = tmp_path / "armar6.toml"
     path.write_text(edit(text))
     with pytest.raises(RobotError, match=message):

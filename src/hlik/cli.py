@@ -928,7 +928,7 @@ def calibrate(
         console.print(f"dynamic offsets: {found} (paper, ARMAR-6 Sho2: +{0.55 / np.pi:.3f}·s_x)")
     stored = {m.joint: m for m in r.mapping.joints}
     same = all(_close(stored.get(m.joint), m) for m in cal.mapping.joints)
-    where = robot_toml(robot)
+    where = f"robots/{r.name}.toml" if r.reference == r.name else robot_toml(robot)
     console.print(
         f"matches {where}"
         if same
