@@ -131,13 +131,14 @@ def test_smplh_joint_positions_with_hands(tmp_path):
     }  # fmt: skip
     desc = tmp_path / "box.toml"
     table = "\n".join(f'{k} = "{v}"' for k, v in names.items())
-    desc.write_text(
-        f'data = "{data}"\narray = "joint_pos"\nnames = "joint_names"\nrate = 30\n[keypoints]\n{table}\n'
-    )
+    # no rate: the file stores its fps
+    desc.write_text(f'data = "{data}"\narray = "joint_pos"\nnames = "joint_names"\n[keypoints]\n{table}\n')
     keypoints = read_keypoints(desc)
+    assert np.isclose(keypoints.times[1], 1 / 30)
     assert keypoints.index is not None and keypoints.hand_frames() is not None
     motion = fit_mmm(keypoints)
     assert np.median(fit_error(motion)) < 0.06
+    assert any("the subject walks" in n for n in motion.notes)  # carrying the box across the room
     hand = forward_kinematics(motion).tcp_rot
     wanted = keypoints.hand_frames()[1]
     angle = np.degrees(Rotation.from_matrix(np.swapaxes(hand, -1, -2) @ wanted).magnitude())

@@ -100,7 +100,10 @@ MOTION_FILES = ("*.xml", "*.bvh", "*.toml")
 console = Console(markup=False)
 
 MotionArg = Annotated[
-    Path | None, typer.Argument(help="MMM motion file (default: the bundled demo).", show_default=False)
+    Path | None,
+    typer.Argument(
+        help="Motion: MMM .xml, .bvh or a keypoint .toml (default: the bundled demo).", show_default=False
+    ),
 ]
 
 CorpusOpt = Annotated[

@@ -33,6 +33,7 @@ from hlik.human.motion import ARM_JOINTS, HumanMotion
 
 ITERATIONS = 30  # IK steps at most per frame; frames converge in 2-5
 STEP_TOL = 1e-6  # rad: a step below it ends the frame
+WALKING = 0.5  # m the shoulders travel horizontally before a take counts as walking
 HAND_ORIENTATION_COST = 0.1  # per rad against 1 per m: a hand frame 10° off weighs like 1.7 cm
 
 
@@ -181,7 +182,15 @@ def fit_mmm(keypoints: Keypoints, height: float | None = None) -> HumanMotion:
         f"({keypoints.times[worst]:.2f} s); the subject's shoulders are {100 * abs(wider):.1f} cm "
         f"{'wider' if wider > 0 else 'narrower'} than the model's"
     )
-    return replace(motion, notes=(*motion.notes, note))
+    notes = [note]
+    mid = keypoints.shoulder.mean(axis=1)
+    travel = float(np.max(np.linalg.norm(mid[:, :2] - mid[0, :2], axis=-1)))
+    if travel > WALKING:
+        notes.append(
+            f"{where}the subject walks ({travel:.1f} m from where it starts); a robot standing in one "
+            "place cannot follow, so expect hands far off their targets (crop the take to where it stands)"
+        )
+    return replace(motion, notes=(*motion.notes, *notes))
 
 
 def _upright_through(left: np.ndarray, right: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -6,7 +6,7 @@ A keypoint file is described by a small TOML (the file users pass to ``hlik run`
     data = "trial1.txt"       # .csv/.txt (T, columns), .npy/.npz (T, J, 3), or .bvh; relative to the TOML
     array = "joint_pos"       # .npz only: which array
     names = "joint_names"     # .npz only, optional: an array of joint names, so [keypoints] may name them
-    rate = 30.0               # Hz (or ``times = <column>`` for a time stamp column of a table)
+    rate = 30.0               # Hz; an .npz may store it (fps, rate, framerate, mocap_framerate)
     units = "m"               # m, cm, mm or in; checked against the arm lengths either way
     up = "z"                  # the vertical axis: x, y, z, -x, -y, -z; detected if left out
     floor = 0.0               # height of the floor along ``up``, file units; "auto" (the default) keeps a
@@ -128,6 +128,11 @@ def read_keypoints(path: Path) -> Keypoints:
         desc = {"rate": rate, **desc}
     else:
         array, joint_names = _load_array(path, data, desc)
+        if "rate" not in desc and data.suffix.lower() == ".npz":
+            with np.load(data) as arrays:
+                stored = [k for k in ("fps", "rate", "framerate", "mocap_framerate") if k in arrays]
+                if stored:
+                    desc = {"rate": float(arrays[stored[0]]), **desc}
     points = {n: _column(path, array, n, table[n], joint_names) for n in table}
     times = _times(path, desc, array)
     return _assemble(path, data.stem, times, points, desc, data)
@@ -256,7 +261,9 @@ def _column(path: Path, array: np.ndarray, name: str, where: object, joint_names
 def _times(path: Path, desc: Mapping, array: np.ndarray) -> np.ndarray:
     rate = desc.get("rate")
     if isinstance(rate, bool) or not isinstance(rate, int | float) or not math.isfinite(rate):
-        raise MotionFormatError(path, f"rate must be the frame rate in Hz, got {rate!r}")
+        raise MotionFormatError(
+            path, f"rate = <frame rate in Hz> is needed (the data file gives none), got {rate!r}"
+        )
     if not RATE_RANGE[0] <= rate <= RATE_RANGE[1]:
         raise MotionFormatError(path, f"rate = {rate} Hz is outside {RATE_RANGE[0]:g}-{RATE_RANGE[1]:g} Hz")
     return np.arange(len(array)) / float(rate)
