@@ -198,7 +198,7 @@ def test_bvh_angles_come_back_as_mmm_angles(tmp_path):
     path = tmp_path / "lift.bvh"
     _bvh(path, frames)
     keypoints = read_bvh(path)
-    assert any("up axis detected as y" in n for n in keypoints.notes)
+    assert any("up axis y (the skeleton's spine)" in n for n in keypoints.notes)
     assert np.allclose(
         np.linalg.norm(keypoints.elbow - keypoints.shoulder, axis=-1), 0.30, atol=1e-5
     )  # cm -> m

@@ -124,8 +124,8 @@ def read_keypoints(path: Path) -> Keypoints:
             path, f"[keypoints] {unknown[0]}: unknown keypoint; choose from {', '.join(sorted(known))}"
         )
     if data.suffix.lower() == ".bvh":
-        array, joint_names, rate = _read_bvh(path, data)
-        desc = {"rate": rate, **desc}
+        array, joint_names, rate, up = _read_bvh(path, data)
+        desc = {"rate": rate, "up": up, "skeleton_up": True, **desc}
     else:
         array, joint_names = _load_array(path, data, desc)
         if "rate" not in desc and data.suffix.lower() == ".npz":
@@ -154,7 +154,7 @@ def read_bvh(path: Path) -> Keypoints:
     Raises:
         MotionFormatError: unreadable BVH, or a required keypoint none of whose names it has.
     """
-    array, joint_names, rate = _read_bvh(path, path)
+    array, joint_names, rate, up = _read_bvh(path, path)
     bare = [n.rsplit(":", 1)[-1] for n in joint_names]
     table = {}
     for side, S, s in (("left", "Left", "l"), ("right", "Right", "r")):
@@ -171,11 +171,13 @@ def read_bvh(path: Path) -> Keypoints:
                 )
     points = {n: array[:, k] for n, k in table.items()}
     times = np.arange(len(array)) / rate
-    return _assemble(path, path.stem, times, points, {}, path)
+    return _assemble(path, path.stem, times, points, {"up": up, "skeleton_up": True}, path)
 
 
-def _read_bvh(path: Path, data: Path) -> tuple[np.ndarray, list[str], float]:
-    """(T, J, 3) world positions of a BVH's joints, their names and the frame rate."""
+def _read_bvh(path: Path, data: Path) -> tuple[np.ndarray, list[str], float, str]:
+    """(T, J, 3) world positions of a BVH's joints, their names, the frame rate and the up axis: the
+    skeleton's, from the root to its highest joint in the rest pose (arms held forward through a
+    whole take would fool a guess from the motion)."""
     try:
         import bvhio
     except ImportError:
@@ -193,12 +195,19 @@ def _read_bvh(path: Path, data: Path) -> tuple[np.ndarray, list[str], float]:
         raise MotionFormatError(
             path, f"{data.name}: {frames} frames at {container.FrameTime} s each; need two or more"
         )
+    root.loadRestPose()
+    rest = np.array([tuple(j[0].PositionWorld) for j in joints])
+    lower = [n.rsplit(":", 1)[-1].lower() for n in names]
+    upper_body = [i for key in ("head", "neck", "spine") for i, n in enumerate(lower) if key in n]
+    top = rest[upper_body[0]] - rest[0] if upper_body else rest[np.argmax(rest[:, 1])] - rest[0]
+    k = int(np.argmax(np.abs(top)))
+    up = ("-" if top[k] < 0 else "") + "xyz"[k]
     positions = np.empty((frames, len(joints), 3))
     for k in range(frames):
         root.loadPose(k)
         for i, (joint, _, _) in enumerate(joints):
             positions[k, i] = tuple(joint.PositionWorld)
-    return positions, names, 1.0 / container.FrameTime
+    return positions, names, 1.0 / container.FrameTime, up
 
 
 def _load_array(path: Path, data: Path, desc: Mapping) -> tuple[np.ndarray, list[str]]:
@@ -419,6 +428,9 @@ def _up_axis(path: Path, desc: Mapping, points: Mapping[str, np.ndarray], notes:
         return detected
     if not isinstance(given, str) or given.lstrip("-") not in AXES or given.count("-") > 1:
         raise MotionFormatError(path, f"up = {given!r}; choose from x, y, z, -x, -y, -z")
+    if desc.get("skeleton_up"):
+        notes.append(f"{path}: up axis {given} (the skeleton's spine)")
+        return given
     if given != detected and abs(mean[k]) > 0.5:
         raise MotionFormatError(
             path,
