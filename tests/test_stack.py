@@ -97,7 +97,7 @@ def test_stack_slsqp_settings_are_the_papers():
 
     assert load_stack("paper_opt").settings("slsqp") == SLSQPSettings()  # the paper's OPT
     tuned = load_stack("ee_pose").settings("slsqp")
-    assert replace(tuned, criterion=10.0, max_eval=100) == SLSQPSettings()
+    assert replace(tuned, criterion=10.0, max_eval=100, orientation=9.0) == SLSQPSettings()
     relative = load_stack("relative_pose").settings("slsqp")
     assert relative == SLSQPSettings.relative()
 
