@@ -216,3 +216,30 @@ def test_bvh_without_usual_names_says_how_to_name_them(tmp_path):
     path.write_text(path.read_text().replace("LeftForeArm", "l_lowerleg_oops"))
     with pytest.raises(MotionFormatError, match=r"no BVH joint for the left elbow .*\[keypoints\]"):
         read_bvh(path)
+
+
+def test_a_fitted_motion_records_its_keypoints_and_fit_error(tmp_path):
+    """The recording of a run from keypoints draws them and plots the fit error per frame."""
+    pytest.importorskip("bvhio")
+    from rerun.chunk import RrdReader
+    from typer.testing import CliRunner
+
+    from hlik.cli import app
+
+    n = 12
+    frames = np.zeros((n, 33))
+    frames[:, 1] = 95.0
+    frames[:, 13] = frames[:, 16] = -np.linspace(20, 60, n)
+    path = tmp_path / "lift.bvh"
+    _bvh(path, frames)
+    out = tmp_path / "lift.rrd"
+    result = CliRunner().invoke(
+        app, ["run", str(path), "--robot", "armar6", "--solver", "jm", "-o", str(out)]
+    )
+    assert result.exit_code == 0, result.output
+    chunks = list(RrdReader(out).stream().to_chunks())
+    entities = {c.entity_path for c in chunks}
+    assert {"/world/human/keypoints", "/plots/fit/error"} <= entities
+    error = [c for c in chunks if c.entity_path == "/plots/fit/error" and not c.is_static]
+    frames = len(np.load(out.with_suffix(".npz"))["times"])
+    assert sum(c.to_record_batch().num_rows for c in error) == frames  # a value every frame

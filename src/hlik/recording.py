@@ -46,7 +46,7 @@ from hlik.atomic import atomic_path
 from hlik.criteria import registry, unified
 from hlik.criteria.functional import position_error, relative_errors, rotation_angle
 from hlik.fk import body_poses
-from hlik.human.fit import fit_error
+from hlik.human.fit import fit_error, keypoint_markers
 from hlik.human.kinematics import human_model, qpos_trajectory
 from hlik.human.motion import ObjectMotion
 from hlik.metrics import Evaluation
@@ -413,7 +413,7 @@ def _log(
     ]
     _log_paths(rec, "/world/human/hand_paths", traj.placement.to_world(traj.targets.pos), SIDE_COLORS)
     if fit is not None:
-        tracks.append(_keypoints_track(rec, "/world/human/keypoints", traj.motion.markers, times))
+        tracks.append(_keypoints_track(rec, "/world/human/keypoints", keypoint_markers(traj.motion), times))
     for name, obj in traj.motion.objects.items():
         tracks += _object(rec, _entity(name), obj, times, chunk_frames)
 
@@ -629,8 +629,8 @@ def _log_paths(rec, entity: str, pos: np.ndarray, colors: Mapping[str, tuple]) -
 
 
 def _keypoints_track(rec, entity: str, markers: Mapping[str, np.ndarray], times: np.ndarray) -> Track:
-    """Log the source keypoints a fitted motion carries as markers; the track of their positions."""
-    names = [n for n in markers if n.split("_", 1)[0] in SIDES]
+    """Log the keypoints a fitted motion was fitted to; the track of their positions."""
+    names = list(markers)
     points = np.stack([markers[n] for n in names], axis=1)  # (T, K, 3)
     colors = [SIDE_COLORS[n.split("_", 1)[0]] for n in names]
     rec.log(

@@ -8,6 +8,7 @@ from dataclasses import replace
 import numpy as np
 
 from hlik.errors import HlikError
+from hlik.human.fit import keypoint_markers
 from hlik.human.motion import HumanMotion
 from hlik.problem.placement import Placement
 from hlik.problem.problem import Problem, build_problem
@@ -58,7 +59,8 @@ def trajectory_of(problem: Problem, result: SolverResult | np.ndarray, solver: s
         tcp_rot=tcp_rot,
         targets=problem.targets,
         placement=problem.placement,
-        motion=replace(problem.motion, markers={}),
+        # body markers are left out (a KIT take has 53); a fitted motion's keypoints stay, for the recording
+        motion=replace(problem.motion, markers=keypoint_markers(problem.motion)),
         reference=problem.reference,
         diagnostics=result.diagnostics,
     )

@@ -41,7 +41,8 @@ class Trajectory:
         tcp_pos, tcp_rot: (T, 2, 3), (T, 2, 3, 3) robot TCP poses in the robot base frame.
         targets: The hand targets the trajectory was made for (robot base frame).
         placement: Pose of the robot base in the human's world.
-        motion: The human motion retargeted, on the same time base (no body markers).
+        motion: The human motion retargeted, on the same time base (no body markers; a motion
+            fitted to keypoints keeps them, in memory, not in the ``.npz``).
         reference: The human reference of every frame (mapped pose, Ψ, manipulability).
         diagnostics: How the solver reached each frame.
     """

@@ -27,10 +27,12 @@ import mujoco
 import numpy as np
 
 from hlik.errors import MotionFormatError
-from hlik.human.keypoints import ARM_POINTS, SIDES, Keypoints
+from hlik.human.keypoints import ARM_POINTS, HAND_POINTS, SIDES, Keypoints
 from hlik.human.kinematics import forward_kinematics, human_model, human_spec, shoulder_frame
 from hlik.human.motion import ARM_JOINTS, HumanMotion
 
+# The markers a fitted motion carries: the keypoints it was fitted to.
+KEYPOINT_MARKERS = tuple(f"{s}_{p}" for s in SIDES for p in (*ARM_POINTS, *HAND_POINTS))
 ITERATIONS = 30  # IK steps at most per frame; frames converge in 2-5
 STEP_TOL = 1e-6  # rad: a step below it ends the frame
 WALKING = 0.5  # m the shoulders travel horizontally before a take counts as walking
@@ -202,6 +204,11 @@ def _upright_through(left: np.ndarray, right: np.ndarray) -> tuple[np.ndarray, n
     shoulder_frame(left, right)  # raises if the heading is undefined
     x, z = x / np.linalg.norm(x), z / np.linalg.norm(z)
     return np.column_stack([x, np.cross(z, x), z]), (left + right) / 2
+
+
+def keypoint_markers(motion: HumanMotion) -> dict[str, np.ndarray]:
+    """The markers of ``motion`` that are keypoints it was fitted to (none for an MMM recording)."""
+    return {k: v for k, v in motion.markers.items() if k in KEYPOINT_MARKERS}
 
 
 def fit_error(motion: HumanMotion) -> np.ndarray | None:
