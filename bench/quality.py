@@ -29,6 +29,7 @@ from hlik.criteria.learned import learn
 from hlik.metrics import evaluate
 from hlik.placement_search import optimize_placement
 from hlik.problem.placement import placement_from_spec
+from hlik.problem.scale import scale_subject
 from hlik.robot.state import robot_state
 from hlik.solvers import get_solver
 from hlik.solvers.stack_file import load_stack
@@ -65,7 +66,7 @@ def run(
     rows, fpos, freach, off, times, capped, speed, contact = [], [], [], [], [], [], [], []
     for take in takes:
         motion = hlik.load_motion(take, rate=100.0)
-        motion = motion.crop(1.0, min(1.0 + seconds, motion.duration))
+        motion = scale_subject(motion.crop(1.0, min(1.0 + seconds, motion.duration)), robot)
         placement = placement or robot.placement
         if placement == "optimize":
             fast = get_solver("qp", replace(stack.settings("qp"), **qp_overrides), learned)

@@ -186,3 +186,34 @@ def test_a_study_runs_on_the_g1(g1, tmp_path):
     assert sorted(p.name for p in (tmp_path / "cells").glob("*.parquet"))[0].startswith(
         "demo_pour_wipe__g1__"
     )
+
+
+def test_a_scaled_subject_scales_every_position_and_keeps_the_angles(cut_take):
+    from hlik.human import forward_kinematics, load_motion
+
+    motion = load_motion(cut_take).frames(slice(0, 20))
+    small = motion.scaled(0.7, " (test)")
+    a, b = forward_kinematics(motion), forward_kinematics(small)
+    for p, q in ((a.shoulder, b.shoulder), (a.elbow, b.elbow), (a.wrist, b.wrist), (a.tcp_pos, b.tcp_pos)):
+        np.testing.assert_allclose(q, 0.7 * p, atol=1e-9)
+    np.testing.assert_allclose(b.tcp_rot, a.tcp_rot, atol=1e-12)
+    assert np.array_equal(small.joints, motion.joints) and "subject scaled by 0.700" in small.notes[-1]
+    for name, obj in motion.objects.items():
+        np.testing.assert_allclose(small.objects[name].position, 0.7 * obj.position)
+
+
+def test_auto_scale_fits_the_subject_to_the_g1_arms(g1, cut_take, tmp_path):
+    from hlik.human import load_motion
+    from hlik.human.kinematics import human_model
+    from hlik.problem.scale import arm_length, scale_subject
+
+    motion = load_motion(cut_take).frames(slice(0, 5))
+    scaled = scale_subject(motion, g1)  # the example's subject_scale = "auto"
+    robot_arm = arm_length(g1.model, g1.home)
+    assert 0.45 < robot_arm < 0.5  # shoulder to TCP, the README's 0.48 m
+    human = human_model(scaled.height)
+    np.testing.assert_allclose(arm_length(human, human.qpos0), robot_arm, rtol=1e-9)
+    assert scale_subject(motion, load_robot("armar6")) is motion  # bundled robots: as recorded
+    bad = CliRunner().invoke(app, ["run", "--robot", str(G1), "--scale", "0", "-o", str(tmp_path / "x.rrd")])
+    assert bad.exit_code != 0 and "subject scale must be positive" in bad.output
+    assert not list(tmp_path.iterdir())

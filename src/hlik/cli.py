@@ -204,6 +204,14 @@ def run(
             show_default=False,
         ),
     ] = None,
+    scale: Annotated[
+        str | None,
+        typer.Option(
+            help="Scale the subject before retargeting: auto (to the robot's arm length) or a factor. "
+            "Default: the robot's (1 for ARMAR-III, ARMAR-6, 2-Panda, as in the paper).",
+            show_default=False,
+        ),
+    ] = None,
     metric: MetricOpt = None,
 ) -> None:
     """Retarget a motion to a robot; write a Rerun recording and the trajectory (.npz) beside it."""
@@ -214,6 +222,7 @@ def run(
     from hlik.paths import tasks_dir
     from hlik.placement_search import optimize_placement
     from hlik.problem.placement import placement_from_spec
+    from hlik.problem.scale import scale_subject
     from hlik.recording import LAYOUTS
     from hlik.retarget import retarget
     from hlik.robot.model import load_robot
@@ -252,6 +261,7 @@ def run(
             criteria=chosen,
             gradients=gradients,
             placement=placement if placement not in (None, r.placement) else None,
+            scale=scale if scale not in (None, str(r.subject_scale)) else None,
             scenario=scenario if scenario != task_stack.scenario else None,
             metric=metric,
             rate=rate,
@@ -264,7 +274,7 @@ def run(
         _check_outputs(rrd, npz, inputs, create=out is None, force=force)
         with _progress(spinner=True) as progress:
             task = progress.add_task(f"reading {path.name}", total=None)
-            m = load_motion(path, rate=rate or None)
+            m = scale_subject(load_motion(path, rate=rate or None), r, scale)
 
             def counting(description: str):  # a (k, n) callback: a bar for one stage
                 progress.update(task, description=description, total=None, completed=0)
@@ -335,6 +345,7 @@ def _run_tag(
     criteria: Sequence[str],
     gradients: str,
     placement: str | None,
+    scale: str | None = None,
     scenario: str | None,
     metric: Path | None,
     rate: float,
@@ -346,6 +357,7 @@ def _run_tag(
     parts = [solver, *(() if default_stack else (stack,)), *criteria]
     parts += ["fd"] if gradients == "fd" else []
     parts += [f"at-{placement}"] if placement is not None else []
+    parts += [f"scale-{scale}"] if scale is not None else []
     parts += [scenario] if scenario is not None else []
     parts += [f"metric-{metric.stem}"] if metric is not None else []
     parts += [] if rate == 100.0 else ["native" if rate == 0 else f"{rate:g}Hz"]

@@ -135,6 +135,37 @@ class HumanMotion:
         """(T, k) angles of the named joints, in the order given."""
         return np.stack([self.joint(n) for n in names], axis=1)
 
+    def scaled(self, factor: float, why: str = "") -> HumanMotion:
+        """The same motion by a subject ``factor`` times as tall: the height, root, markers and object
+        positions (world, about the origin; the floor at z = 0 stays) scale, the joint angles stay.
+        ``why`` goes into a note.
+
+        Raises:
+            hlik.errors.SettingsError: ``factor`` is not a positive finite number.
+        """
+        if not (math.isfinite(factor) and factor > 0):
+            where = self.source or self.name
+            raise SettingsError(f"{where}: subject scale must be positive, got {factor:g}")
+        if factor == 1.0:
+            return self
+        note = (
+            f"{self.source or self.name}: subject scaled by {factor:.3f} "
+            f"({self.height:.2f} m -> {factor * self.height:.2f} m){why}"
+        )
+        return replace(
+            self,
+            height=self.height * factor,
+            root_position=self.root_position * factor,
+            markers={k: v * factor for k, v in self.markers.items()},
+            objects={
+                k: replace(
+                    o, position=o.position * factor, markers={m: factor * v for m, v in o.markers.items()}
+                )
+                for k, o in self.objects.items()
+            },
+            notes=(*self.notes, note),
+        )
+
     def crop(self, start: float, stop: float) -> HumanMotion:
         """The frames with ``start <= t - t0 <= stop`` (seconds from the first frame)."""
         t = self.times - self.times[0]

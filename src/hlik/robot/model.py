@@ -59,6 +59,9 @@ class Robot:
         placement: The placement rule used when none is given (``reach``, ``mapped``, ...; see
             :mod:`hlik.problem.placement`), chosen per robot from measurements (robots/README.md).
         description: The robot's TOML file.
+        subject_scale: How the subject is scaled before retargeting, a factor or ``auto`` (the
+            robot's arm length over the subject's; :mod:`hlik.problem.scale`). 1 for robots of a
+            person's size, as in the paper.
     """
 
     name: str
@@ -78,6 +81,7 @@ class Robot:
     manipulability_joints: tuple[str, ...] = ()
     placement: str = "reach"
     description: Path | None = None
+    subject_scale: float | str = 1.0
 
     @property
     def reference(self) -> str:
@@ -271,6 +275,7 @@ def _build(path: Path, desc: dict, need_mapping: bool = True) -> Robot:
         manipulability_joints=manip_joints,
         placement=_placement_rule(path, desc),
         description=path,
+        subject_scale=_subject_scale(path, desc),
     )
 
 
@@ -368,6 +373,16 @@ def _mapping(path: Path, desc: dict, names: tuple[str, ...]) -> JointMapping:
                 if isinstance(fold, bool) or not isinstance(fold, int | float) or math.isnan(fold):
                     raise RobotError(f"{path}: {where} offset fold must be a number, got {fold!r}")
     return JointMapping.from_table(table)
+
+
+def _subject_scale(path: Path, desc: dict) -> float | str:
+    value = desc.get("subject_scale", 1.0)
+    if value == "auto":
+        return value
+    number = isinstance(value, int | float) and not isinstance(value, bool)
+    if not (number and math.isfinite(value) and value > 0):
+        raise RobotError(f'{path}: subject_scale must be "auto" or a positive number, got {value!r}')
+    return float(value)
 
 
 def _placement_rule(path: Path, desc: dict) -> str:

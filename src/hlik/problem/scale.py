@@ -1,0 +1,57 @@
+"""How tall a subject the robot retargets from: the recorded one, or one scaled to the robot's arms.
+
+The paper retargets hand poses as recorded, to robots about a person's size (``subject_scale = 1``,
+the default). A robot much smaller or larger than the subject cannot reach the recorded hand poses
+with any posture; ``auto`` scales the subject (:meth:`HumanMotion.scaled`: height, root and hand
+positions; the joint angles stay) by the robot's arm length over the subject's, the usual
+human-to-robot scaling of retargeting tools.
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+
+from hlik.errors import SettingsError
+from hlik.human.kinematics import human_model
+from hlik.human.motion import HumanMotion
+from hlik.robot.model import SIDES, Robot
+
+ARM = ("shoulder", "elbow", "wrist", "tcp")
+
+
+def arm_length(model: mujoco.MjModel, qpos: np.ndarray) -> float:
+    """Mean over both arms of shoulder -> elbow -> wrist -> TCP, m, at configuration ``qpos``."""
+    data = mujoco.MjData(model)
+    data.qpos[:] = qpos
+    mujoco.mj_kinematics(model, data)
+    lengths = []
+    for side in SIDES:
+        points = np.array([data.site_xpos[model.site(f"{side}_{site}").id] for site in ARM])
+        lengths.append(float(np.linalg.norm(np.diff(points, axis=0), axis=1).sum()))
+    return float(np.mean(lengths))
+
+
+def auto_scale(robot: Robot, motion: HumanMotion) -> float:
+    """The robot's arm length (shoulder to TCP, at home) over the subject's (MMM model at its height)."""
+    human = human_model(motion.height)
+    qpos = human.qpos0.copy()
+    return arm_length(robot.model, robot.home) / arm_length(human, qpos)
+
+
+def scale_subject(motion: HumanMotion, robot: Robot, rule: float | str | None = None) -> HumanMotion:
+    """``motion`` by a subject scaled by ``rule``: a factor, ``"auto"`` (:func:`auto_scale`), or None
+    for the robot's own (``Robot.subject_scale``).
+
+    Raises:
+        SettingsError: a rule that is neither ``auto`` nor a positive number.
+    """
+    rule = robot.subject_scale if rule is None else rule
+    if rule == "auto":
+        factor = auto_scale(robot, motion)
+        return motion.scaled(factor, f" to {robot.title}'s arms (subject_scale auto)")
+    try:
+        factor = float(rule)
+    except (TypeError, ValueError):
+        raise SettingsError(f"subject scale must be auto or a positive number, got {rule!r}") from None
+    return motion.scaled(factor, "")
