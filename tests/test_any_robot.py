@@ -215,5 +215,7 @@ def test_auto_scale_fits_the_subject_to_the_g1_arms(g1, cut_take, tmp_path):
     np.testing.assert_allclose(arm_length(human, human.qpos0), robot_arm, rtol=1e-9)
     assert scale_subject(motion, load_robot("armar6")) is motion  # bundled robots: as recorded
     bad = CliRunner().invoke(app, ["run", "--robot", str(G1), "--scale", "0", "-o", str(tmp_path / "x.rrd")])
-    assert bad.exit_code != 0 and "subject scale must be positive" in bad.output
+    assert (
+        bad.exit_code != 0 and "subject scale (--scale, subject_scale) must be auto or 0.1-10" in bad.output
+    )
     assert not list(tmp_path.iterdir())

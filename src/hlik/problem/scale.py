@@ -9,6 +9,8 @@ human-to-robot scaling of retargeting tools.
 
 from __future__ import annotations
 
+import math
+
 import mujoco
 import numpy as np
 
@@ -18,6 +20,7 @@ from hlik.human.motion import HumanMotion
 from hlik.robot.model import SIDES, Robot
 
 ARM = ("shoulder", "elbow", "wrist", "tcp")
+SCALE_RANGE = (0.1, 10.0)  # a factor outside it is a typo, not a robot
 
 
 def arm_length(model: mujoco.MjModel, qpos: np.ndarray) -> float:
@@ -53,5 +56,10 @@ def scale_subject(motion: HumanMotion, robot: Robot, rule: float | str | None = 
     try:
         factor = float(rule)
     except (TypeError, ValueError):
-        raise SettingsError(f"subject scale must be auto or a positive number, got {rule!r}") from None
+        factor = math.nan
+    if not SCALE_RANGE[0] <= factor <= SCALE_RANGE[1]:
+        low, high = SCALE_RANGE
+        raise SettingsError(
+            f"subject scale (--scale, subject_scale) must be auto or {low:g}-{high:g}, got {rule!r}"
+        )
     return motion.scaled(factor, "")
