@@ -780,7 +780,7 @@ def study(
     corpus: CorpusOpt = None,
 ) -> None:
     """The paper's study: retarget, correlate the criteria, derive the metric, rank the approaches."""
-    from hlik.robot.model import available_robots, robot_toml
+    from hlik.robot.model import robot_toml
     from hlik.study.approaches import PAPER, load_approaches
     from hlik.study.runner import plan, run_study
 
@@ -798,12 +798,10 @@ def study(
         if not files or not all(f.is_file() for f in files):
             raise HlikError(f"{folder}: no takes ({', '.join(MOTION_FILES)})")
         names = [r.strip() for r in robots.split(",") if r.strip()]
-        for given in names:
-            if given.endswith(".toml"):
-                robot_toml(given)  # a robot by path: the file must be there
-        unknown = [r for r in names if r not in available_robots() and not r.endswith(".toml")]
-        if unknown or not names:
-            raise HlikError(f"unknown robot {unknown[0] if unknown else robots!r}; see `hlik robots`")
+        if not names:
+            raise HlikError(f"unknown robot {robots!r}; see `hlik robots`")
+        for name in names:
+            robot_toml(name)  # a bundled name or a path of a .toml; the message lists the known ones
         listed = load_approaches(approaches or PAPER)
         n_cells = len(plan(files, names, listed, seconds))
         console.print(
@@ -902,7 +900,7 @@ def calibrate(
 
     from hlik.robot.calibrate import calibrate as run_calibration
     from hlik.robot.calibrate import mapping_toml, write_mapping
-    from hlik.robot.model import load_robot, robot_toml
+    from hlik.robot.model import load_robot
 
     with _one_line():
         r = load_robot(robot, need_mapping=False)
@@ -911,9 +909,9 @@ def calibrate(
         sys.stdout.write(mapping_toml(r, cal.mapping))
         return
     if write:
-        path = robot_toml(robot)
-        write_mapping(path, mapping_toml(r, cal.mapping))
-        console.print(f"wrote [mapping.left] and [mapping.right] to {path}")
+        assert r.description is not None  # load_robot always names the file it read
+        write_mapping(r.description, mapping_toml(r, cal.mapping))
+        console.print(f"wrote [mapping.left] and [mapping.right] to {r.description}")
         return
     table = Table(
         "robot joint",
@@ -943,7 +941,7 @@ def calibrate(
         console.print(f"dynamic offsets: {found} (paper, ARMAR-6 Sho2: +{0.55 / np.pi:.3f}·s_x)")
     stored = {m.joint: m for m in r.mapping.joints}
     same = all(_close(stored.get(m.joint), m) for m in cal.mapping.joints)
-    where = f"robots/{r.name}.toml" if r.reference == r.name else robot_toml(robot)
+    where = f"robots/{r.name}.toml" if r.reference == r.name else r.description
     console.print(
         f"matches {where}"
         if same

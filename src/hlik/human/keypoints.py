@@ -123,19 +123,17 @@ def read_keypoints(path: Path) -> Keypoints:
         raise MotionFormatError(
             path, f"[keypoints] {unknown[0]}: unknown keypoint; choose from {', '.join(sorted(known))}"
         )
+    skeleton_up: str | None = None
+    rate: float | None
     if data.suffix.lower() == ".bvh":
-        array, joint_names, rate, up = _read_bvh(path, data)
-        desc = {"rate": rate, "up": up, "skeleton_up": True, **desc}
+        array, joint_names, rate, skeleton_up = _read_bvh(path, data)
     else:
-        array, joint_names = _load_array(path, data, desc)
-        if "rate" not in desc and data.suffix.lower() == ".npz":
-            with np.load(data) as arrays:
-                stored = [k for k in ("fps", "rate", "framerate", "mocap_framerate") if k in arrays]
-                if stored:
-                    desc = {"rate": float(arrays[stored[0]]), **desc}
+        array, joint_names, rate = _load_array(path, data, desc)
+    if rate is not None:  # what the data file says, unless the description says otherwise
+        desc = {"rate": rate, **desc}
     points = {n: _column(path, array, n, table[n], joint_names) for n in table}
     times = _times(path, desc, array)
-    return _assemble(path, data.stem, times, points, desc, data)
+    return _assemble(path, data.stem, times, points, desc, data, skeleton_up)
 
 
 # Usual BVH joint names of each keypoint (after any "prefix:" namespace), first match wins.
@@ -170,8 +168,8 @@ def read_bvh(path: Path) -> Keypoints:
                     "name it in a keypoint description (data = this file, [keypoints])",
                 )
     points = {n: array[:, k] for n, k in table.items()}
-    times = np.arange(len(array)) / rate
-    return _assemble(path, path.stem, times, points, {"up": up, "skeleton_up": True}, path)
+    times = _times(path, {"rate": rate}, array)
+    return _assemble(path, path.stem, times, points, {}, path, up)
 
 
 def _read_bvh(path: Path, data: Path) -> tuple[np.ndarray, list[str], float, str]:
@@ -184,8 +182,8 @@ def _read_bvh(path: Path, data: Path) -> tuple[np.ndarray, list[str], float, str
         raise MotionFormatError(path, 'reading BVH needs bvhio: pip install -e ".[bvh]"') from None
 
     try:
-        root = bvhio.readAsHierarchy(str(data))
         container = bvhio.readAsBvh(str(data))
+        root = bvhio.convertBvhToHierarchy(container.Root)
     except Exception as e:  # bvhio raises bare exceptions on malformed files
         raise MotionFormatError(path, f"cannot read BVH {data.name}: {' '.join(str(e).split())}") from None
     joints = root.layout()
@@ -210,12 +208,14 @@ def _read_bvh(path: Path, data: Path) -> tuple[np.ndarray, list[str], float, str
     return positions, names, 1.0 / container.FrameTime, up
 
 
-def _load_array(path: Path, data: Path, desc: Mapping) -> tuple[np.ndarray, list[str]]:
-    """The keypoint array and, if the description names them, its joints' names."""
+def _load_array(path: Path, data: Path, desc: Mapping) -> tuple[np.ndarray, list[str], float | None]:
+    """The keypoint array, its joints' names if the description names them, and the frame rate an
+    ``.npz`` stores (``fps``, ``rate``, ``framerate`` or ``mocap_framerate``; else None)."""
     if not data.is_file():
         raise MotionFormatError(path, f"data file {data} not found")
     suffix = data.suffix.lower()
     joint_names: list[str] = []
+    rate = None
     try:
         if suffix == ".npz":
             with np.load(data) as arrays:
@@ -229,6 +229,9 @@ def _load_array(path: Path, data: Path, desc: Mapping) -> tuple[np.ndarray, list
                     if desc["names"] not in arrays:
                         raise MotionFormatError(path, f"names = {desc['names']!r} is not in {data.name}")
                     joint_names = [str(n) for n in arrays[desc["names"]]]
+                stored = [k for k in ("fps", "rate", "framerate", "mocap_framerate") if k in arrays]
+                if stored:
+                    rate = float(arrays[stored[0]])
         elif suffix == ".npy":
             array = np.load(data).astype(float)
         else:
@@ -240,7 +243,7 @@ def _load_array(path: Path, data: Path, desc: Mapping) -> tuple[np.ndarray, list
         raise MotionFormatError(
             path, f"{data.name}: expected (T, columns) or (T, J, 3), got shape {array.shape}"
         )
-    return array, joint_names
+    return array, joint_names, rate
 
 
 def _column(path: Path, array: np.ndarray, name: str, where: object, joint_names: list[str]) -> np.ndarray:
@@ -279,9 +282,17 @@ def _times(path: Path, desc: Mapping, array: np.ndarray) -> np.ndarray:
 
 
 def _assemble(
-    path: Path, name: str, times: np.ndarray, points: dict[str, np.ndarray], desc: Mapping, data: Path
+    path: Path,
+    name: str,
+    times: np.ndarray,
+    points: dict[str, np.ndarray],
+    desc: Mapping,
+    data: Path,
+    skeleton_up: str | None = None,
 ) -> Keypoints:
-    """Units, up axis and gaps of the named points (T, 3) in the file's units and axes."""
+    """Units, up axis and gaps of the named points (T, 3) in the file's units and axes.
+
+    ``skeleton_up``: a BVH skeleton's up axis (``up`` in ``desc`` overrides it)."""
     notes = []
     stacked = np.stack(list(points.values()))  # (K, T, 3)
     bad = ~np.all(np.isfinite(stacked), axis=(0, 2))
@@ -299,7 +310,7 @@ def _assemble(
             points[key] = np.stack([np.interp(times, times[good], value[good, k]) for k in range(3)], axis=1)
         notes.append(f"{path}: {data.name}: {bad.sum()} frames with NaN keypoints, interpolated")
     scale = _units(path, desc, points)
-    up = _up_axis(path, desc, points, notes)
+    up = _up_axis(path, desc, points, notes, skeleton_up)
     rot = _z_up(up)
     arrays = {k: (v * scale) @ rot.T for k, v in points.items()}
     lift = _floor(path, desc, arrays, scale, notes)
@@ -411,14 +422,17 @@ def _units(path: Path, desc: Mapping, points: Mapping[str, np.ndarray]) -> float
     return UNITS[fits[0]]
 
 
-def _up_axis(path: Path, desc: Mapping, points: Mapping[str, np.ndarray], notes: list[str]) -> str:
-    """The file's vertical axis: given as ``up``, or the axis along which the shoulders are above the
-    elbows on average (true of a person standing or sitting at a task)."""
+def _up_axis(
+    path: Path, desc: Mapping, points: Mapping[str, np.ndarray], notes: list[str], skeleton_up: str | None
+) -> str:
+    """The file's vertical axis: given as ``up``, a BVH skeleton's (``skeleton_up``), or the axis
+    along which the shoulders are above the elbows on average (true of a person standing or sitting
+    at a task). A given axis the arms contradict is refused, unless a skeleton backs it."""
     down = np.concatenate([points[f"{s}_shoulder"] - points[f"{s}_elbow"] for s in SIDES])
     mean = np.nanmean(down, axis=0) / max(float(np.nanmean(np.linalg.norm(down, axis=1))), 1e-12)
     k = int(np.argmax(np.abs(mean)))
     detected = ("-" if mean[k] < 0 else "") + "xyz"[k]
-    given = desc.get("up")
+    given = desc.get("up", skeleton_up)
     if given is None:
         if abs(mean[k]) < 0.3:
             raise MotionFormatError(
@@ -428,7 +442,7 @@ def _up_axis(path: Path, desc: Mapping, points: Mapping[str, np.ndarray], notes:
         return detected
     if not isinstance(given, str) or given.lstrip("-") not in AXES or given.count("-") > 1:
         raise MotionFormatError(path, f"up = {given!r}; choose from x, y, z, -x, -y, -z")
-    if desc.get("skeleton_up"):
+    if skeleton_up is not None:
         notes.append(f"{path}: up axis {given} (the skeleton's spine)")
         return given
     if given != detected and abs(mean[k]) > 0.5:

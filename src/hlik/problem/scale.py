@@ -38,8 +38,7 @@ def arm_length(model: mujoco.MjModel, qpos: np.ndarray) -> float:
 def auto_scale(robot: Robot, motion: HumanMotion) -> float:
     """The robot's arm length (shoulder to TCP, at home) over the subject's (MMM model at its height)."""
     human = human_model(motion.height)
-    qpos = human.qpos0.copy()
-    return arm_length(robot.model, robot.home) / arm_length(human, qpos)
+    return arm_length(robot.model, robot.home) / arm_length(human, human.qpos0)
 
 
 def scale_subject(motion: HumanMotion, robot: Robot, rule: float | str | None = None) -> HumanMotion:

@@ -248,7 +248,7 @@ def _build(path: Path, desc: dict, need_mapping: bool = True) -> Robot:
     limited = model.jnt_limited.astype(bool)
     lower = np.where(limited, model.jnt_range[:, 0], -np.inf)
     upper = np.where(limited, model.jnt_range[:, 1], np.inf)
-    home = _home(path, home_table, names, compiled.welded, lower, upper)
+    home = _home(path, home_angles, names, compiled.welded, lower, upper)
     velocity, velocity_source = _velocity_limits(path, desc, names, compiled.velocity)
     mapping = _mapping(path, desc, names)
     missing = [j for s in SIDES for j in arms[s] if j not in {m.joint for m in mapping.joints}]
@@ -319,19 +319,18 @@ def _number(path: Path, value: object, where: str) -> float:
 
 def _home(
     path: Path,
-    table: dict,
+    table: Mapping[str, float],
     names: tuple[str, ...],
     welded: Mapping[str, float],
     lower: np.ndarray,
     upper: np.ndarray,
 ) -> np.ndarray:
-    """(n,) home configuration from ``[home]`` (joints not listed at 0), within the joint limits.
-
-    ``[home]`` may also name welded joints: the angle they are welded at."""
+    """(n,) home configuration from the ``[home]`` angles (read by ``_number``; joints not listed at
+    0), within the joint limits. ``[home]`` may also name welded joints: the angle they are welded at."""
     unknown = [j for j in table if j not in names and j not in welded]
     if unknown:
         raise RobotError(f"{path}: [home] names joints not in the model: {', '.join(unknown)}")
-    home = np.array([_number(path, table.get(n, 0.0), f"[home] {n}") for n in names])
+    home = np.array([table.get(n, 0.0) for n in names])
     outside = [n for n, v, lo, hi in zip(names, home, lower, upper) if not lo <= v <= hi]
     if outside:
         k = names.index(outside[0])
