@@ -181,7 +181,7 @@ def _fraction_inside(q: np.ndarray, step: np.ndarray, box: JointBox) -> float:
     already do not count)."""
     with np.errstate(divide="ignore", invalid="ignore"):
         room = np.where(step > 0, (box.upper - q) / step, np.where(step < 0, (box.lower - q) / step, np.inf))
-    return float(np.clip(np.min(room, initial=1.0), 0.0, 1.0))
+    return min(max(float(np.min(room, initial=1.0)), 0.0), 1.0)
 
 
 def null_space_projector(jac: np.ndarray, rcond: float = 1e-6) -> np.ndarray:
@@ -229,7 +229,7 @@ def _fraction_within(rows: np.ndarray, rhs: np.ndarray, x: np.ndarray, v: np.nda
     rate, room = rows @ v, rhs - rows @ x
     with np.errstate(divide="ignore", invalid="ignore"):
         limits = np.where((rate > 0) & (room >= 0), room / rate, np.inf)
-    return float(np.clip(np.min(limits, initial=1.0), 0.0, 1.0))
+    return min(max(float(np.min(limits, initial=1.0)), 0.0), 1.0)
 
 
 def _avoiding_step(
