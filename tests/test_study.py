@@ -87,9 +87,14 @@ def test_the_papers_approach_file():
     assert len(names) == len(set(names))
     corr = [a for a in approaches if a.correlation]
     assert {a.solver for a in corr} == {"jm", "jv", "slsqp", "qp"}
-    assert all(len(a.criteria) <= 1 for a in corr) and len(corr) == 1 + 3 * (1 + len(NAMES))
+    assert all(len(a.criteria) <= 1 for a in corr) and len(corr) == 1 + 3 * (1 + len(NAMES)) - 1
     assert {"slsqp+SYN+HJA_r", "qp+SYN+SYN_r", "jv+HJA_r+SOA_q", "slsqp (relative)"} <= set(names)
     assert all(a.stack == "paper_opt" for a in approaches if a.scenario == "pose")
+    # the paper leaves MJE out of JV (Sec. IV-A) and JV out of the relative pose (Sec. V-B)
+    assert "jv+MJE" not in names and not any(
+        a.solver == "jv" and a.scenario == "relative" for a in approaches
+    )
+    assert {"slsqp+MJE", "qp+MJE", "qp (relative)"} <= set(names)
 
 
 def test_the_quick_approach_file_is_bundled_by_name():
@@ -109,6 +114,8 @@ def test_the_quick_approach_file_is_bundled_by_name():
         ("[correlation]\nsolvers = 'jm'", "solvers must be a list"),
         ("[correlation]\nsolvers = ['jm']\nsingle_criteria = 'yes'", "true or false"),
         ("", "no approach for the correlation"),
+        ("exclude = 'jv'\n[correlation]\nsolvers = ['jm']", "exclude must be a list"),
+        ("exclude = ['jv+XYZ']\n[correlation]\nsolvers = ['jm', 'jv']", "'jv+XYZ' matches no approach"),
     ],
 )
 def test_bad_approach_files_name_the_file_and_the_problem(tmp_path, text, problem):

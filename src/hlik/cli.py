@@ -756,7 +756,7 @@ def study(
     approaches: Annotated[
         Path | None,
         typer.Option(
-            help="Approach file, or a bundled one: paper (the default, the paper's 58) or quick (JM and "
+            help="Approach file, or a bundled one: paper (the default, the paper's 53) or quick (JM and "
             "QP, minutes).",
             show_default=False,
         ),

@@ -3,6 +3,7 @@ from an approach file (``study/paper.toml`` is the paper's)."""
 
 from __future__ import annotations
 
+import fnmatch
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -54,9 +55,14 @@ def load_approaches(path: str | Path = PAPER) -> tuple[Approach, ...]:
     """
     path = Path(__file__).with_name(f"{path}.toml") if str(path) in BUNDLED else Path(path)
     raw = read_toml(path, "approach", BUNDLED)
-    unknown = set(raw) - {"stacks", "correlation", "evaluation"}
+    unknown = set(raw) - {"stacks", "correlation", "evaluation", "exclude"}
     if unknown:
-        raise HlikError(f"{path}: unknown table {sorted(unknown)[0]!r} (stacks, correlation, evaluation)")
+        raise HlikError(
+            f"{path}: unknown table {sorted(unknown)[0]!r} (stacks, correlation, evaluation, exclude)"
+        )
+    exclude = raw.get("exclude", [])
+    if not isinstance(exclude, list) or not all(isinstance(e, str) for e in exclude):
+        raise HlikError(f'{path}: exclude must be a list of approach names or patterns, e.g. ["jv+MJE"]')
     stacks = {"pose": "paper_opt", "relative": "relative_pose"} | dict(raw.get("stacks", {}))
     corr, ev = raw.get("correlation", {}), raw.get("evaluation", {})
     single = corr.get("single_criteria", False)
@@ -84,7 +90,13 @@ def load_approaches(path: str | Path = PAPER) -> tuple[Approach, ...]:
                 out.append(Approach(solver, criteria, scenario, stacks[scenario]))
     seen: dict[str, Approach] = {}
     for a in out:
-        seen.setdefault(a.name, a)
+        if not any(fnmatch.fnmatchcase(a.name, pattern) for pattern in exclude):
+            seen.setdefault(a.name, a)
+    unused = [e for e in exclude if not any(fnmatch.fnmatchcase(a.name, e) for a in out)]
+    if unused:
+        raise HlikError(
+            f"{path}: exclude: {unused[0]!r} matches no approach (names as in 'jv+MJE (relative)')"
+        )
     if not any(a.correlation for a in seen.values()):
         raise HlikError(f"{path}: no approach for the correlation (a [correlation] table with solvers)")
     return tuple(seen.values())
