@@ -88,6 +88,31 @@ def test_every_criterion_gradient_matches_central_differences_of_its_cost(robot,
         np.testing.assert_allclose(grad, fd, atol=2e-5 * max(1.0, np.abs(fd).max()))
 
 
+@pytest.mark.parametrize("name", ALL)
+def test_every_criterion_splits_into_parts_whose_mean_is_its_cost(robot, name):
+    """SLSQP puts each arm's part of a two-arm cost through its own groove loss: the parts' mean is
+    h, each is zero when its arm's rows are, and each part's gradient is exact."""
+    crit = registry.criterion(name, robot, learn(robot))
+    sample, q = _sample_and_q(robot, 5)
+    state = robot_state(robot, q, jacobians=True)
+    e = crit(state, sample)[0]
+    parts, d_parts = crit.part_metric(e)
+    assert parts.shape == (crit.parts,) and d_parts.shape == (crit.parts, len(e))
+    assert parts.mean() == pytest.approx(crit.metric(e)[0], rel=1e-12, abs=1e-15)
+    for p, rows in enumerate(crit.part_rows(len(e))):
+        kept = np.zeros_like(e)
+        kept[rows] = e[rows]
+        assert crit.part_metric(kept)[0][p] == pytest.approx(parts[p], rel=1e-12, abs=1e-15)
+    if crit.solver_form is not None:
+        return  # its gradient is the stand-in's, checked above through metric
+    h, grad = crit.part_gradients(state, sample)
+    fd = central_differences(
+        lambda x: crit.part_metric(crit(robot_state(robot, x, jacobians=True), sample)[0])[0], q
+    )
+    np.testing.assert_allclose(h, parts, rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(grad, fd, atol=2e-5 * max(1.0, np.abs(fd).max()))
+
+
 def test_evaluate_reports_the_cost_the_solvers_compute(robot):
     """Per frame, evaluate's h equals the criterion's cost on that frame's configuration and sample."""
     learned = learn(robot)

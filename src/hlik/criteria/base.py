@@ -10,6 +10,8 @@ that :mod:`hlik.metrics` scores. Both work on F samples at once: ``residual`` (F
 
 from __future__ import annotations
 
+import functools
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import ClassVar
 
@@ -81,6 +83,16 @@ class Term:
     sites: tuple[int, ...] = (0, 1, 2, 3)  # site Jacobians the Jacobian reads (indices into SITES)
     value_sites: tuple[int, ...] = ()  # site Jacobians the residual itself reads
     constant_jacobian: np.ndarray | None = None  # (m, n) when J depends on neither q nor the sample
+    # h is the mean over this many parts of e (the arms): h(e) = mean_p h(e_p) * parts, e_p keeping
+    # part p's rows (:meth:`part_rows`) and zeros elsewhere
+    parts: int = 1
+    # how each part's cost depends on its rows, for a solver's curvature: "norm" (their Euclidean
+    # norm), "squares" (mean of squares) or None (other, or Term's own mean of squares)
+    part_form: str | None = None
+
+    def part_rows(self, m: int) -> Sequence[np.ndarray]:
+        """The rows of each part of a residual with ``m`` rows: :attr:`parts` equal slices."""
+        return _equal_parts(m, self.parts)
 
     def residual(self, state: RobotState, sample: Sample) -> np.ndarray:
         """(F, m) residual at the F configurations of ``state``."""
@@ -107,15 +119,52 @@ class Term:
         )
         return self.residual(state, sample)[0], jac
 
+    def metrics(self, e: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The cost h the solvers minimise (F,) of F residuals (F, m), and dh/de (F, m): :meth:`cost`
+        unless the solvers minimise a stand-in (``Criterion.solver_form``)."""
+        return self.cost(e), self.cost_gradient(e)
+
     def metric(self, e: np.ndarray) -> tuple[float, np.ndarray]:
-        """The cost h of one residual ``e`` (m,) and dh/de (m,)."""
-        return float(self.cost(e[None])[0]), self.cost_gradient(e[None])[0]
+        """:meth:`metrics` of one residual ``e`` (m,): h and dh/de (m,)."""
+        h, dh_de = self.metrics(e[None])
+        return float(h[0]), dh_de[0]
+
+    def exact(self, state: RobotState, sample: Sample) -> tuple[np.ndarray, np.ndarray]:
+        """Residual (m,) and its exact derivative d e / dq (m, n) of one sample; :meth:`__call__`'s
+        Jacobian unless that one holds a prediction fixed (``Criterion.exact_jacobian``)."""
+        return self(state, sample)
 
     def gradient(self, state: RobotState, sample: Sample) -> tuple[float, np.ndarray]:
         """The cost h of one sample and its gradient dh/dq (n,)."""
-        e, jac = self(state, sample)
+        e, jac = self.exact(state, sample)
         h, dh_de = self.metric(e)
         return h, dh_de @ jac
+
+    def part_metric(self, e: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Each part's cost ``parts * h(e_p)`` of a residual ``e`` (m,) or (F, m): (P,) or (F, P), and
+        d/de: (P, m) or (F, P, m).
+
+        Their mean is h(e). A solver that puts each through its own loss keeps a smooth objective
+        where the loss of the mean has a kink: l(|a| + |b|) at a = 0 when b != 0."""
+        if self.parts == 1:
+            h, dh_de = self.metrics(e.reshape(-1, e.shape[-1]))
+            return h.reshape(*e.shape[:-1], 1), dh_de.reshape(*e.shape[:-1], 1, e.shape[-1])
+        rows = self.part_rows(e.shape[-1])
+        split = np.zeros((*e.shape[:-1], len(rows), e.shape[-1]))
+        for p, r in enumerate(rows):
+            split[..., p, r] = e[..., r]
+        flat = split.reshape(-1, e.shape[-1])
+        h = self.cost(flat).reshape(split.shape[:-1])
+        return self.parts * h, self.parts * self.cost_gradient(flat).reshape(split.shape)
+
+    def part_gradients(self, state: RobotState, sample: Sample) -> tuple[np.ndarray, np.ndarray]:
+        """Each part's cost (P,) of one sample (:meth:`part_metric`) and its gradient d/dq (P, n)."""
+        if self.parts == 1:
+            cost, grad = self.gradient(state, sample)
+            return np.array([cost]), grad[None]
+        e, jac = self.exact(state, sample)
+        costs, dh_de = self.part_metric(e)
+        return costs, dh_de @ jac
 
 
 class Criterion(Term):
@@ -147,6 +196,11 @@ class Criterion(Term):
 
     def __init__(self, robot: object = None, learned: object = None):
         """Criteria that need neither the robot nor the learned pieces take them and ignore them."""
+
+
+@functools.cache
+def _equal_parts(m: int, parts: int) -> tuple[np.ndarray, ...]:
+    return tuple(np.array_split(np.arange(m), parts))
 
 
 def block_norm_cost(e: np.ndarray, blocks: int) -> np.ndarray:

@@ -438,8 +438,8 @@ class EEA(Criterion):
     """
 
     name, gamma, x0, weight = "EEA", 4.0, 0.3, 1 / 20
-    exact_jacobian = False  # jacobian() holds the prediction and the weight fixed; gradient() is exact
-    needs_sample = False
+    exact_jacobian = False  # jacobian() holds the prediction and the weight fixed; exact() does not
+    needs_sample, parts, part_form = False, 2, "norm"
 
     def __init__(self, robot: object, learned: Learned):
         self.swivel = learned.swivel
@@ -468,16 +468,22 @@ class EEA(Criterion):
         """The target (F, 2) and its derivative d target / dq (F, 2, n)."""
         return prediction_and_jacobian(self.swivel, state)
 
-    def gradient(self, state, sample):
+    def exact(self, state, sample):
         # one pass each over the arm geometry and the regressor (13 rows): SLSQP calls this per evaluation
         psi, weight, d_weight, d_swivel = swivel_parts_and_jacobians(state)
         target, d_target = self.target_and_jacobian(state, sample, psi)
         r = np.nan_to_num(eea_residual(psi, target))
         d_psi = _capped(d_swivel, SWIVEL_CAP) - d_target
         jac = d_weight * r[..., None] + weight[..., None] * d_psi / np.pi  # (1, 2, n)
-        h, dh_de = self.metric((weight * r)[0])
-        g = dh_de @ jac[0]
-        return h, g * min(1.0, GRADIENT_CAP / max(float(np.linalg.norm(g)), 1e-300))
+        return (weight * r)[0], jac[0]
+
+    def gradient(self, state, sample):
+        h, g = super().gradient(state, sample)
+        return h, _capped(g[None], GRADIENT_CAP)[0]
+
+    def part_gradients(self, state, sample):
+        h, g = super().part_gradients(state, sample)
+        return h, _capped(g, GRADIENT_CAP)
 
 
 class EEA_r(EEA):  # noqa: N801 - the paper's name

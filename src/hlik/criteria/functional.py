@@ -94,7 +94,7 @@ class fPOS(Criterion):  # noqa: N801 - the paper's name
     """Both TCPs to their target positions; e (F, 6) in m, h the mean distance over the hands."""
 
     name, functional = "fPOS", True
-    sites = (3,)
+    sites, parts, part_form = (3,), 2, "norm"
 
     def residual(self, state, sample):
         return (state.tcp - sample.target_pos).reshape(len(state.q), 6)
@@ -113,7 +113,7 @@ class fORI(Criterion):  # noqa: N801
     """Both TCPs to their target orientations: rotation vectors of R R*^T (rad); h the mean angle."""
 
     name, functional = "fORI", True
-    sites = (3,)
+    sites, parts, part_form = (3,), 2, "norm"
     exact_jacobian = False  # first order: exact at the target
 
     def residual(self, state, sample):
@@ -137,7 +137,7 @@ class fPOS_off(Criterion):  # noqa: N801
     """Paper Eq. 3: t_left + R_left t_rel - t_right (m); h its norm."""
 
     name, functional = "fPOS_off", True
-    sites = (3,)
+    sites, part_form = (3,), "norm"
 
     def residual(self, state, sample):
         return state.tcp[:, 0] + _right_offset(state, sample) - state.tcp[:, 1]
@@ -159,7 +159,7 @@ class fORI_off(Criterion):  # noqa: N801
     """Paper Eq. 4: rotation vector of (R_left R_rel) R_right^T (rad); h its norm (the angle)."""
 
     name, functional = "fORI_off", True
-    sites = (3,)
+    sites, part_form = (3,), "norm"
     exact_jacobian = False
 
     def residual(self, state, sample):

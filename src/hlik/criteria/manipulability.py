@@ -260,6 +260,7 @@ class MAN_r(Criterion):  # noqa: N801 - the paper's name
 
     name, gamma, x0, weight = "MAN_r", 0.5, 1.9, 1 / 5
     sites = value_sites = (SITE,)
+    parts, part_form = 2, "norm"
 
     def __init__(self, robot: Robot, learned: Learned):
         self.robot, self.scale = robot, learned.scale

@@ -68,7 +68,7 @@ class MJE(Criterion):
     """
 
     name, gamma, x0, weight = "MJE", 1.0, 2e-4, 1 / 5
-    sites, motion = (), True
+    sites, motion, parts, part_form = (), True, 2, "norm"
     solver_form = "||jerk||^2 + 3 ||velocity||^2 toward the previous frames (never amplifies the jerk)"
     solver_stencil = (JERK + MJE_VELOCITY * VELOCITY) / (1.0 + MJE_VELOCITY)
 
@@ -83,6 +83,9 @@ class MJE(Criterion):
     def __call__(self, state, sample):
         e = backward_difference(state.q, sample.history, self.solver_stencil, self.unlimited)
         return e[0], self.constant_jacobian
+
+    def part_rows(self, m):
+        return self.arms
 
     def cost(self, e):
         return np.mean([np.linalg.norm(e[:, arm], axis=-1) for arm in self.arms], axis=0)
@@ -101,7 +104,7 @@ class Smoothness(Term):
     """Velocity, acceleration and jerk toward the extrapolation of the previous frames (RelaxedIK),
     as one least-squares term: ``stencil . (q_t, ..., q_t-3)`` with the identity Jacobian."""
 
-    sites = ()
+    sites, part_form = (), "norm"
 
     def __init__(self, stencil: np.ndarray, robot: Robot, name: str = "smoothness"):
         self.name, self.stencil, self.unlimited = name, stencil, np.isinf(robot.lower)

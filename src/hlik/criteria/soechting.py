@@ -190,7 +190,8 @@ class SOA_x(Criterion):  # noqa: N801 - the paper's name
     """SOA_x: elbow to its Soechting prediction from the wrist, per upper-arm length (e (F, 6))."""
 
     name, gamma, x0, weight = "SOA_x", 10.0, 0.2, 1 / 20
-    exact_jacobian = False  # jacobian() holds the prediction fixed; gradient() is exact
+    exact_jacobian = False  # jacobian() holds the prediction fixed; exact() does not
+    parts, part_form = 2, "norm"
     needs_sample = False
 
     def __init__(self, robot: Robot, learned: object = None):
@@ -209,27 +210,22 @@ class SOA_x(Criterion):  # noqa: N801 - the paper's name
     def cost_gradient(self, e):
         return block_norm_gradient(e, 2)
 
-    def exact_residual_and_jacobian(self, state: RobotState) -> tuple[np.ndarray, np.ndarray]:
-        """The residual (F, 6) and d residual / dq (F, 6, n) with the prediction moving with the
-        wrist and shoulder."""
+    def exact(self, state, sample):
+        """The residual (6,) and d residual / dq (6, n) with the prediction moving with the wrist and
+        shoulder."""
         elbow, _, d_elbow, _ = prediction_derivatives(state.shoulder, state.wrist, self.l_u, self.l_f)
         assert state.jac is not None
         pred = state.jac[:, :, 0, :3, :] + _relative_jacobian(state, d_elbow)  # elbow_pred = shoulder + ...
         jac = (state.jac[:, :, 1, :3, :] - pred) / np.asarray(self.l_u, float)[:, None, None]
         e = soa_x_residual(state, elbow, self.l_u).reshape(len(state.q), 6)
-        return e, jac.reshape(len(state.q), 6, -1)
-
-    def gradient(self, state, sample):
-        e, jac = self.exact_residual_and_jacobian(state)
-        h, dh_de = self.metric(e[0])
-        return h, dh_de @ jac[0]
+        return e[0], jac.reshape(len(state.q), 6, -1)[0]
 
 
 class SOA_q(Criterion):  # noqa: N801
     """SOA_q: the mapped joints to the predicted shoulder and elbow angles (e (F, k), rad)."""
 
     name, gamma, x0, weight = "SOA_q", 2.0, 0.34, 1 / 20
-    exact_jacobian = False  # jacobian() holds the prediction fixed; gradient() is exact
+    exact_jacobian = False  # jacobian() holds the prediction fixed; exact() does not
     needs_sample = False
 
     def __init__(self, robot: Robot, learned: object = None):
@@ -245,11 +241,9 @@ class SOA_q(Criterion):  # noqa: N801
         _, angles = predict_arm(state.shoulder[:1], state.wrist[:1], self.l_u, self.l_f)
         return soa_q_jacobian(state, soa_q_targets(self.robot, angles)[0])
 
-    def exact_residual_and_jacobian(
-        self, state: RobotState, eps: float = 1e-6
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """The residual (F, k) and d residual / dq (F, k, n) with the predicted targets moving with
-        the wrist and shoulder."""
+    def exact(self, state, sample, eps: float = 1e-6):
+        """The residual (k,) and d residual / dq (k, n) with the predicted targets moving with the
+        wrist and shoulder."""
         _, angles, _, d_angles = prediction_derivatives(state.shoulder, state.wrist, self.l_u, self.l_f)
         f = len(angles)
         # d targets / d angles (F, k, 2, 3): the mapping (and its dynamic offsets), central differences
@@ -260,9 +254,4 @@ class SOA_q(Criterion):  # noqa: N801
         d_targets = np.moveaxis((targets[0] - targets[1]) / (2 * eps), 0, -1).reshape(f, len(idx), 2, 3)
         d_angles_dq = _relative_jacobian(state, d_angles)  # (F, 2, 3, n)
         e = soa_q_residual(self.robot, state, idx, soa_q_targets(self.robot, angles)[1])
-        return e, soa_q_jacobian(state, idx) - np.einsum("fkac,facn->fkn", d_targets, d_angles_dq)
-
-    def gradient(self, state, sample):
-        e, jac = self.exact_residual_and_jacobian(state)
-        h, dh_de = self.metric(e[0])
-        return h, dh_de @ jac[0]
+        return e[0], (soa_q_jacobian(state, idx) - np.einsum("fkac,facn->fkn", d_targets, d_angles_dq))[0]

@@ -168,7 +168,7 @@ class MIS(Criterion):
     """
 
     name, gamma, x0, weight = "MIS", 1.0, 0.49, 1 / 5
-    sites, motion = (), True
+    sites, motion, part_form = (), True, "squares"  # the stand-in's
     solver_form = "velocity penalty ||(I - U^T U) e||^2 (formulas.md §9)"
 
     def __init__(self, robot: Robot, learned: Learned):
@@ -202,5 +202,5 @@ class MIS(Criterion):
         jac = self.jacobian(state, sample)[0]
         return self.outside @ self.residual(state, sample)[0], self.outside @ jac
 
-    def metric(self, e):
-        return float(np.mean(e * e)), 2.0 * e / len(e)
+    def metrics(self, e):
+        return np.mean(e * e, axis=-1), 2.0 * e / e.shape[-1]
