@@ -114,6 +114,30 @@ def test_tracks_reachable_kit_targets_on_armar3(takes, reachable_targets):
     assert np.median(steps.diagnostics.iterations[1:]) < settings.max_iter
 
 
+def test_the_papers_rule_ends_a_frame_once_its_targets_are_reached(takes, reachable_targets):
+    """paper_opt's JV (Simox's 10 mm and 0.05 rad): at least one step a frame, fewer than stepping to
+    convergence, every hand within the thresholds where it stopped short of the cap."""
+    from hlik.criteria.functional import fORI
+    from hlik.solvers.stack_file import load_stack
+
+    r = load_robot("armar3")
+    motion = load_motion(takes[0], rate=100).crop(2.0, 2.5)
+    placement = shoulder_placement(r, forward_kinematics(motion))
+    targets = reachable_targets(r, motion)
+    paper = load_stack("paper_opt").settings("jv")
+    assert (paper.reached_position, paper.reached_orientation) == (0.01, 0.05)
+    q, on = solve_problem(solve, r, motion, targets, placement, paper)
+    _, off = solve_problem(solve, r, motion, targets, placement, replace(paper, reached_position=0.0))
+    steps = on.diagnostics.iterations
+    assert np.all(steps >= 1) and steps[1:].mean() < 0.8 * off.diagnostics.iterations[1:].mean()
+    state = robot_state(r, q)
+    pos = np.linalg.norm(state.tcp - targets.pos, axis=-1)  # (T, 2)
+    sample = Sample(targets.pos, targets.rot, *(np.zeros((len(q), 1)),) * 4, 0.01)
+    ori = np.stack([fORI().part_metric(e)[0] for e in fORI().residual(state, sample)])
+    short = steps < paper.max_iter
+    assert np.all(pos[short] < paper.reached_position) and np.all(ori[short] < paper.reached_orientation)
+
+
 def test_unreachable_targets_give_finite_motion_and_report_the_error():
     r = load_robot("armar3")
     motion = demo_motion().crop(0, 0.5)

@@ -72,9 +72,11 @@ class Term:
     """A residual e (F, m) with its Jacobian (F, m, n), and the scalar cost h (F,) of e.
 
     Subclasses implement :meth:`residual` and :meth:`jacobian` (or set ``constant_jacobian``) and,
-    where h is not the mean of squares, :meth:`cost` and :meth:`cost_gradient`. Solvers read one
-    sample through :meth:`__call__` (e, J), :meth:`metric` (h, dh/de) and :meth:`gradient`
-    (h, dh/dq); ``cost_weight`` is the weight a solver gives the term (scalar or per row).
+    where h is not the mean of squares, :meth:`cost` and :meth:`cost_gradient` (and ``parts`` and
+    ``part_form`` where h is a mean over the arms). Solvers read one sample through :meth:`__call__`
+    (e, J), :meth:`exact` (e, exact J), :meth:`metric` (h, dh/de), :meth:`gradient` (h, dh/dq) and,
+    per arm, :meth:`part_metric` and :meth:`part_gradients`; ``cost_weight`` is the weight a solver
+    gives the term (scalar or per row).
     """
 
     name: str = "term"
@@ -153,9 +155,8 @@ class Term:
         split = np.zeros((*e.shape[:-1], len(rows), e.shape[-1]))
         for p, r in enumerate(rows):
             split[..., p, r] = e[..., r]
-        flat = split.reshape(-1, e.shape[-1])
-        h = self.cost(flat).reshape(split.shape[:-1])
-        return self.parts * h, self.parts * self.cost_gradient(flat).reshape(split.shape)
+        h, dh_de = self.metrics(split.reshape(-1, e.shape[-1]))
+        return self.parts * h.reshape(split.shape[:-1]), self.parts * dh_de.reshape(split.shape)
 
     def part_gradients(self, state: RobotState, sample: Sample) -> tuple[np.ndarray, np.ndarray]:
         """Each part's cost (P,) of one sample (:meth:`part_metric`) and its gradient d/dq (P, n)."""

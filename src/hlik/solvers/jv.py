@@ -8,8 +8,9 @@ projected onto the null space of the target Jacobian (gradient projection; formu
     dq = W⁻¹Jᵀ(J W⁻¹Jᵀ + λ²I)⁻¹ (-step e) + bound(k N ∇(Σ w_i h_i + w_H H)),
 
 the whole capped to ``max_step`` and clipped into the joint limits. Frames are warm-started from
-the previous solution; a frame stops when no joint moves more than ``tol`` or after ``max_iter``
-steps. The criterion gradients are the analytic ones of :mod:`hlik.terms` (the paper uses finite
+the previous solution; a frame stops when no joint moves more than ``tol``, after ``max_iter``
+steps, or (``paper_opt.toml``, as the paper's) once its targets are reached, after its first step.
+The criterion gradients are the analytic ones of :mod:`hlik.terms` (the paper uses finite
 differences).
 
 Self-collision avoidance (not in the paper) is the task of highest priority, with the QP's velocity
@@ -71,6 +72,11 @@ class JVSettings:
         rcond: Singular values of J below rcond times the largest count as null space.
         max_iter: Steps per frame at most (paper: 100; the first frame gets ten times more).
         tol: A frame has converged when no joint moved more than this in a step, rad.
+        reached_position, reached_orientation: With both above 0, a frame also ends, after its
+            first step, once every target is within this distance (m) and angle (rad) of the
+            robot's: the paper's "until reaching target poses". ``paper_opt.toml`` sets Simox
+            CompositeDiffIK's thresholds (``Target.maxPosError`` 10 mm, ``maxOriError`` 0.05 rad);
+            the default 0 steps on until ``tol`` (hands on target to well under a millimetre).
         self_collision: Keep every pair of the robot's collision geoms ``collision_margin`` apart
             (m) with the QP's velocity damper (a pair closer than ``collision_detect`` may approach
             by at most ``collision_gain`` of its distance to the margin per step), as the task of
@@ -92,6 +98,8 @@ class JVSettings:
     rcond: float = 1e-6
     max_iter: int = 100
     tol: float = 1e-4
+    reached_position: float = 0.0
+    reached_orientation: float = 0.0
     self_collision: bool = True
     collision_margin: float = 0.01
     collision_detect: float = 0.10
@@ -100,7 +108,15 @@ class JVSettings:
     def __post_init__(self):
         check_settings(
             self,
-            at_least_zero=("weight", "jla_gamma", "damping", "orientation_weight", "collision_margin"),
+            at_least_zero=(
+                "weight",
+                "jla_gamma",
+                "damping",
+                "orientation_weight",
+                "collision_margin",
+                "reached_position",
+                "reached_orientation",
+            ),
             positive=("step", "max_null", "max_step", "tol", "collision_detect"),
             at_most_zero=("k",),  # k > 0 would climb the null-space cost
             fractions=("rcond", "collision_gain"),
@@ -278,6 +294,19 @@ def primary(
     return np.concatenate([w * e for w, e, _ in rows]), np.vstack([w * jac for w, _, jac in rows])
 
 
+def targets_reached(targets: Sequence[Term], state: RobotState, frame: Sample, settings: JVSettings) -> bool:
+    """Whether every target of ``targets`` (each hand's, or the relative pose's) is within
+    ``settings.reached_position`` (m) and ``reached_orientation`` (rad); False if either is 0."""
+    if settings.reached_position <= 0.0 or settings.reached_orientation <= 0.0:
+        return False
+    rotational = (fORI, fORI_off)
+    for term in targets:
+        limit = settings.reached_orientation if isinstance(term, rotational) else settings.reached_position
+        if np.max(term.part_metric(term(state, frame)[0])[0]) > limit:  # each hand's distance or angle
+            return False
+    return True
+
+
 def secondary(
     criteria: Sequence[Term], state: RobotState, frame: Sample, jla: np.ndarray, settings: JVSettings
 ) -> np.ndarray:
@@ -300,10 +329,12 @@ def step(
     box: JointBox | None = None,
     pairs: CollisionPairs | None = None,
     bounds: DistanceBounds | None = None,
+    stop_if_reached: bool = False,
 ) -> tuple[np.ndarray, Memory]:
     """One JV step from ``q`` (n,) within ``box`` (default: the joint limits), keeping the collision
     ``pairs`` apart (:func:`avoiding_least_norm`, if given; ``bounds`` carried across steps): the
-    joint change dq (n,), before clipping, and the new memory.
+    joint change dq (n,), before clipping, and the new memory. ``stop_if_reached``: no step (zeros)
+    where :func:`targets_reached`.
 
     The null-space bound halves whenever the null-space step reverses: the steep H (and the
     criteria) make bounded gradient steps of a fixed size zig-zag across their minimum, so a frame
@@ -312,6 +343,8 @@ def step(
     sites = tuple(sorted({i for t in (*targets, *criteria) for i in t.sites}))
     data = mujoco.MjData(robot.model) if data is None else data
     state = robot_state(robot, q, jacobians=True, data=data, jacobian_sites=sites)
+    if stop_if_reached and targets_reached(targets, state, frame, settings):
+        return np.zeros(robot.dof), memory
     e, jac = primary(targets, state, frame, settings.orientation_weight)
     _, jla = chan_dubey(q, robot.lower, robot.upper)
     damping = np.hypot(settings.damping, np.linalg.norm(e)) if settings.error_damping else settings.damping
@@ -379,11 +412,18 @@ def solve(
             )
         memory = replace(memory, null_bound=settings.max_null)
 
+        taken = 0
+
         def jv_step(x: np.ndarray) -> np.ndarray:
-            nonlocal memory
+            nonlocal memory, taken
             assert memory is not None
             stack = first if k == 0 else tasks
-            dq, memory = step(robot, stack, criteria, x, frame, settings, memory, data, box, pairs, bounds)
+            # the first step is always taken, so that the hands follow a target that moves by less
+            # than the thresholds, and the null space acts once per frame
+            dq, memory = step(
+                robot, stack, criteria, x, frame, settings, memory, data, box, pairs, bounds, taken > 0
+            )
+            taken += 1
             return dq
 
         return iterate(jv_step, q, box, settings.max_iter * (10 if k == 0 else 1), settings.tol)

@@ -21,7 +21,7 @@ Gauss-Newton Hessian at the start (:meth:`Objective.gauss_newton`), where the He
 identity: SLSQP's first step is a Gauss-Newton step. The joint box becomes linear inequality
 constraints. At the paper's ``ftol_rel = 1e-6`` a frame then takes 4-5 evaluations (Cut and Close
 takes, the three robots, with and without criteria) where it took 44-72, with equal or better
-scores (``bench/slsqp_gradients.py``; ``precondition="scale"`` only divides the objective by
+scores (``bench/slsqp_precondition.py``; ``precondition="scale"`` only divides the objective by
 :func:`objective_scale`, the earlier remedy).
 """
 
