@@ -28,6 +28,7 @@ from hlik.problem.scale import scale_subject
 from hlik.solvers import get_solver
 from hlik.solvers.slsqp import PRECONDITIONERS
 from hlik.solvers.stack_file import load_stack
+from hlik.study.dataset import cell_motion
 
 DATA = Path(os.environ.get("HLIK_DATA", Path(__file__).resolve().parents[2] / "shared" / "motion_data"))
 
@@ -54,8 +55,7 @@ def main() -> None:
         learned = learn(robot)
         scenes = []
         for take in takes:
-            motion = hlik.load_motion(take, rate=100.0).crop(1.0, 1.0 + args.seconds)
-            motion = scale_subject(motion, robot)
+            motion = scale_subject(cell_motion(take, args.seconds, 100.0), robot)  # as a study cell
             scenes.append((motion, placement_from_spec(robot.placement, robot, motion)))
         stats: dict[str, list] = {p: [[], [], [], [], [], []] for p in PRECONDITIONERS}
         for repeat in range(args.repeats):

@@ -112,3 +112,18 @@ def slowed(motion, factor: float):
     from dataclasses import replace
 
     return replace(motion, times=motion.times[0] + factor * (motion.times - motion.times[0]))
+
+
+def random_frame(robot, seed: int):
+    """A frame of the demo on ``robot`` with a random configuration near home and a moving history:
+    the sample and the configuration (n,)."""
+    from hlik.human.demo import demo_motion
+    from hlik.problem.problem import build_problem
+    from hlik.solvers.frames import sample_at
+
+    rng = np.random.default_rng(seed)
+    problem = build_problem(demo_motion().crop(1.0, 1.4), robot)
+    lower, upper = np.maximum(robot.lower, -2.5), np.minimum(robot.upper, 2.5)
+    q = np.clip(robot.home + rng.normal(0, 0.3, robot.dof), lower, upper)
+    history = np.clip(q + rng.normal(0, 0.02, (3, robot.dof)), lower, upper)
+    return sample_at(problem.reference, problem.targets, 3, history, problem.dt), q

@@ -8,7 +8,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from conftest import central_differences
+from conftest import central_differences, random_frame
 from hlik.criteria import registry
 from hlik.criteria.base import Criterion
 from hlik.criteria.learned import learn
@@ -27,16 +27,6 @@ from hlik.solvers.stack_file import load_stack
 ALL = registry.human_likeness() + registry.functional()
 
 
-def _sample_and_q(robot, seed):
-    """A frame of the demo on ``robot`` with a random configuration and a moving history."""
-    rng = np.random.default_rng(seed)
-    problem = build_problem(demo_motion().crop(1.0, 1.4), robot)
-    lower, upper = np.maximum(robot.lower, -2.5), np.minimum(robot.upper, 2.5)
-    q = np.clip(robot.home + rng.normal(0, 0.3, robot.dof), lower, upper)
-    history = np.clip(q + rng.normal(0, 0.02, (3, robot.dof)), lower, upper)
-    return sample_at(problem.reference, problem.targets, 3, history, problem.dt), q
-
-
 def test_registry_lists_the_papers_criteria_once():
     assert registry.human_likeness() == (
         "EEA", "SOA_x", "SOA_q", "HJL", "SYN", "MIS", "MJE", "HJA_r", "SYN_r", "EEA_r", "MAN_r",
@@ -52,7 +42,7 @@ def test_registry_lists_the_papers_criteria_once():
 @pytest.mark.parametrize("name", ALL)
 def test_every_exact_jacobian_matches_central_differences(robot, name):
     crit = registry.criterion(name, robot, learn(robot))
-    sample, q = _sample_and_q(robot, 3)
+    sample, q = random_frame(robot, 3)
     state = robot_state(robot, q, jacobians=True)
     jac = crit.jacobian(state, sample)[0]
     e = crit.residual(state, sample)[0]
@@ -81,7 +71,7 @@ def test_every_criterion_gradient_matches_central_differences_of_its_cost(robot,
         return np.array([crit.metric(crit(robot_state(robot, x, jacobians=True), sample)[0])[0]])
 
     for seed in (3, 4):
-        sample, q = _sample_and_q(robot, seed)
+        sample, q = random_frame(robot, seed)
         h, grad = crit.gradient(robot_state(robot, q, jacobians=True), sample)
         fd = central_differences(lambda x, s=sample: cost(x, s), q)[0]
         assert h == pytest.approx(cost(q, sample)[0])
@@ -93,7 +83,7 @@ def test_every_criterion_splits_into_parts_whose_mean_is_its_cost(robot, name):
     """SLSQP puts each arm's part of a two-arm cost through its own groove loss: the parts' mean is
     h, each is zero when its arm's rows are, and each part's gradient is exact."""
     crit = registry.criterion(name, robot, learn(robot))
-    sample, q = _sample_and_q(robot, 5)
+    sample, q = random_frame(robot, 5)
     state = robot_state(robot, q, jacobians=True)
     e = crit(state, sample)[0]
     parts, d_parts = crit.part_metric(e)

@@ -8,7 +8,7 @@ import nlopt
 import numpy as np
 import pytest
 
-from conftest import ROBOTS, solve_problem
+from conftest import ROBOTS, random_frame, solve_problem
 from hlik import load_motion, load_robot, retarget
 from hlik.criteria import registry
 from hlik.criteria.functional import relative_errors
@@ -206,15 +206,6 @@ def _terms(r, learned):
     return [*(registry.criterion(n, r, learned) for n in names), Smoothness(VELOCITY, r, "velocity")]
 
 
-def _random_frame(r, seed):
-    """A demo frame with a random configuration near home and a moving history."""
-    rng = np.random.default_rng(seed)
-    problem = build_problem(load_motion(demo_motion_path(), rate=100.0).crop(1.0, 1.3), r)
-    q = np.clip(r.home + rng.normal(0, 0.3, r.dof), np.maximum(r.lower, -2.5), np.minimum(r.upper, 2.5))
-    history = q + rng.normal(0, 0.02, (3, r.dof))
-    return sample_at(problem.reference, problem.targets, 3, history, problem.dt), q
-
-
 @pytest.mark.parametrize("name", ALL_TERMS)
 def test_each_losss_curvature_is_its_hessian_in_the_residual(name):
     """loss_curvature's closed forms (norms, squares) and its numerical one equal the Hessian of the
@@ -223,7 +214,7 @@ def test_each_losss_curvature_is_its_hessian_in_the_residual(name):
     r = load_robot("armar6")
     learned = learn(r)
     term = next(t for t in _terms(r, learned) if t.name == name)
-    sample, q = _random_frame(r, 7)
+    sample, q = random_frame(r, 7)
     state = robot_state(r, q, True)
     e = term(state, sample)[0]
     for split in (True, False) if term.parts > 1 else (True,):

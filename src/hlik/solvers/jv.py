@@ -285,12 +285,14 @@ def criterion_terms(robot: Robot, settings: JVSettings, learned: Learned | None)
     return terms
 
 
+ROTATIONAL = (fORI, fORI_off)  # the target terms in rad; the others are in m
+
+
 def primary(
     targets: Sequence[Term], state: RobotState, frame: Sample, orientation_weight: float
 ) -> tuple[np.ndarray, np.ndarray]:
     """Stacked residual e (m,) and Jacobian J (m, n) of the target terms, orientation rows weighted."""
-    rotational = (fORI, fORI_off)
-    rows = [(orientation_weight if isinstance(t, rotational) else 1.0, *t(state, frame)) for t in targets]
+    rows = [(orientation_weight if isinstance(t, ROTATIONAL) else 1.0, *t(state, frame)) for t in targets]
     return np.concatenate([w * e for w, e, _ in rows]), np.vstack([w * jac for w, _, jac in rows])
 
 
@@ -299,9 +301,8 @@ def targets_reached(targets: Sequence[Term], state: RobotState, frame: Sample, s
     ``settings.reached_position`` (m) and ``reached_orientation`` (rad); False if either is 0."""
     if settings.reached_position <= 0.0 or settings.reached_orientation <= 0.0:
         return False
-    rotational = (fORI, fORI_off)
     for term in targets:
-        limit = settings.reached_orientation if isinstance(term, rotational) else settings.reached_position
+        limit = settings.reached_orientation if isinstance(term, ROTATIONAL) else settings.reached_position
         if np.max(term.part_metric(term(state, frame)[0])[0]) > limit:  # each hand's distance or angle
             return False
     return True

@@ -88,6 +88,12 @@ def groove_curvature(x: np.ndarray, c: float = GROOVE_C, r: float = GROOVE_R) ->
     return np.maximum(bump * (1.0 - x**2 / (c * c)) / (c * c), 0.0) + 2.0 * r
 
 
+def groove_secant(x: float, c: float = GROOVE_C, r: float = GROOVE_R) -> float:
+    """dl/dx / x of :func:`groove` with d = g = 2 at ``x``, its limit l''(0) at 0: the curvature of
+    ``l(|e|)`` across the direction of e."""
+    return float(np.exp(-(x**2) / (2.0 * c * c)) / (c * c) + 2.0 * r)
+
+
 # objective_scale's factor over the mean Gauss-Newton diagonal: an initial Hessian that is too large
 # only shortens the first steps, one too small overshoots; 10 needed the fewest evaluations (1, 10,
 # 3e4 fixed and per-frame tried on ARMAR-6, ARMAR-III and 2-Panda, Cut take, both bundled stacks).
@@ -268,8 +274,7 @@ def loss_curvature(loss: Loss, e: np.ndarray, split: bool, eps: float = 1e-6) ->
             norm = float(np.sqrt(part @ part))
             u = part / norm if norm > 0.0 else np.zeros(len(r))
             x = gamma * norm
-            across = np.exp(-(x**2) / (2.0 * GROOVE_C**2)) / GROOVE_C**2 + 2.0 * GROOVE_R  # l'(x) / x
-            along = float(groove_curvature(np.array(x)))
+            across, along = groove_secant(x), float(groove_curvature(np.array(x)))
             phi[np.ix_(r, r)] = across * np.eye(len(r)) + (along - across) * np.outer(u, u)
         return phi * loss.weight * gamma**2 / len(rows)
     if form == "squares":
@@ -468,7 +473,7 @@ class Chart:
 
     @classmethod
     def at(cls, origin: np.ndarray, hessian: np.ndarray) -> Chart | None:
-        """The chart at ``origin`` (n,) for ``hessian`` (n, n), regularised by 1e-9 of its mean
+        """The chart at ``origin`` (n,) for ``hessian`` (n, n), regularised by 1e-6 of its mean
         diagonal; None if it is not positive definite even so (or not finite)."""
         h = 0.5 * (hessian + hessian.T)
         h[np.diag_indices_from(h)] += 1e-6 * max(float(np.trace(h)) / len(h), 1e-12)
