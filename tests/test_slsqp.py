@@ -195,6 +195,13 @@ def test_analytic_gradient_is_the_objectives(robot, criteria, scenario):
     np.testing.assert_allclose(grad, fd, atol=1e-6 * scale)
     # the paper's forward differences agree to their own accuracy
     np.testing.assert_allclose(objective.fd_gradient(q, f), fd, atol=1e-3 * scale)
+    # NLopt's first call (x = 0, the start) is served from the Gauss-Newton pass: the same value,
+    # and the gradient in the chart's variables
+    objective.reset(sample_at(ref, targets, 10, history, 0.01), q)
+    assert objective.chart is not None
+    first = np.empty(r.dof)
+    assert objective(np.zeros(r.dof), first) == pytest.approx(f, rel=1e-12)
+    np.testing.assert_allclose(first, grad @ objective.chart.T, rtol=1e-10, atol=1e-12 * scale)
 
 
 ALL_TERMS = (*registry.human_likeness(), *registry.functional(), "velocity")

@@ -75,8 +75,8 @@ class Term:
     where h is not the mean of squares, :meth:`cost` and :meth:`cost_gradient` (and ``parts`` and
     ``part_form`` where h is a mean over the arms). Solvers read one sample through :meth:`__call__`
     (e, J), :meth:`exact` (e, exact J), :meth:`metric` (h, dh/de), :meth:`gradient` (h, dh/dq) and,
-    per arm, :meth:`part_metric` and :meth:`part_gradients`; ``cost_weight`` is the weight a solver
-    gives the term (scalar or per row).
+    per arm, :meth:`part_metric` and :meth:`part_gradients` (their ``_of`` forms from :meth:`exact`'s
+    result, to share it); ``cost_weight`` is the weight a solver gives the term (scalar or per row).
     """
 
     name: str = "term"
@@ -91,6 +91,7 @@ class Term:
     # how each part's cost depends on its rows, for a solver's curvature: "norm" (their Euclidean
     # norm), "squares" (mean of squares) or None (other, or Term's own mean of squares)
     part_form: str | None = None
+    norm_scale: float = 1.0  # with part_form "norm": each part's cost is norm_scale |e_p|
 
     def part_rows(self, m: int) -> Sequence[np.ndarray]:
         """The rows of each part of a residual with ``m`` rows: :attr:`parts` equal slices."""
@@ -138,7 +139,10 @@ class Term:
 
     def gradient(self, state: RobotState, sample: Sample) -> tuple[float, np.ndarray]:
         """The cost h of one sample and its gradient dh/dq (n,)."""
-        e, jac = self.exact(state, sample)
+        return self.gradient_of(*self.exact(state, sample))
+
+    def gradient_of(self, e: np.ndarray, jac: np.ndarray) -> tuple[float, np.ndarray]:
+        """:meth:`gradient` from :meth:`exact`'s residual ``e`` (m,) and Jacobian ``jac`` (m, n)."""
         h, dh_de = self.metric(e)
         return h, dh_de @ jac
 
@@ -152,6 +156,12 @@ class Term:
             h, dh_de = self.metrics(e.reshape(-1, e.shape[-1]))
             return h.reshape(*e.shape[:-1], 1), dh_de.reshape(*e.shape[:-1], 1, e.shape[-1])
         rows = self.part_rows(e.shape[-1])
+        if self.part_form == "norm":  # each part's cost is the norm of its rows: no split needed
+            norms = np.stack([np.sqrt(np.einsum("...i,...i->...", e[..., r], e[..., r])) for r in rows], -1)
+            grad = np.zeros((*e.shape[:-1], len(rows), e.shape[-1]))
+            for p, r in enumerate(rows):
+                grad[..., p, r] = e[..., r] / np.maximum(norms[..., p, None], 1e-12)
+            return self.norm_scale * norms, self.norm_scale * grad
         split = np.zeros((*e.shape[:-1], len(rows), e.shape[-1]))
         for p, r in enumerate(rows):
             split[..., p, r] = e[..., r]
@@ -160,10 +170,13 @@ class Term:
 
     def part_gradients(self, state: RobotState, sample: Sample) -> tuple[np.ndarray, np.ndarray]:
         """Each part's cost (P,) of one sample (:meth:`part_metric`) and its gradient d/dq (P, n)."""
+        return self.part_gradients_of(*self.exact(state, sample))
+
+    def part_gradients_of(self, e: np.ndarray, jac: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`part_gradients` from :meth:`exact`'s residual ``e`` (m,) and Jacobian ``jac`` (m, n)."""
         if self.parts == 1:
-            cost, grad = self.gradient(state, sample)
+            cost, grad = self.gradient_of(e, jac)
             return np.array([cost]), grad[None]
-        e, jac = self.exact(state, sample)
         costs, dh_de = self.part_metric(e)
         return costs, dh_de @ jac
 

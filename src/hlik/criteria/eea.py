@@ -54,7 +54,11 @@ _SINGULAR = 1e-6  # relative size below which the swivel angle is undefined
 _FADE = 0.1
 EULER = "xzy"  # extrinsic sequence of the hand orientation angles (module docstring)
 _UP = np.array([0.0, 0.0, 1.0])
+_CROSS_UP = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 0.0]])  # v @ _CROSS_UP = v x up
 _MIRROR = np.array([-1.0, 1.0, 1.0])  # x -> -x
+_ARM_MIRROR = np.stack([_MIRROR, np.ones(3)])  # (2, 3): the left arm mirrored, the right as it is
+# the left hand's D R diag(1, -1, 1) (_arm_frame) as an elementwise sign pattern
+_HAND_MIRROR = np.stack([np.outer(_MIRROR, [1.0, -1.0, 1.0]), np.ones((3, 3))])
 _SIDE_SIGN = np.array([-1.0, 1.0])  # left Ψ = -Ψ_raw, right Ψ = Ψ_raw
 # bound on each arm's |dΨ/dq| (rad/rad) and on |dh_EEA/dq| (rad^-1, the same over π): the paper caps
 # the elevation gradients (Sec. IV-A); they grow without bound near the singularities
@@ -91,38 +95,27 @@ FEATURES = (
 
 
 def _unit(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """v / |v| and |v| over the last axis (NaN for 0: call within np.errstate)."""
     norm = np.sqrt(np.einsum("...i,...i->...", v, v))
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return v / norm[..., None], norm
-
-
-def _cross(u: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """u x v over the last axis (np.cross costs ten times more on these small arrays)."""
-    return np.stack(
-        [
-            u[..., 1] * v[..., 2] - u[..., 2] * v[..., 1],
-            u[..., 2] * v[..., 0] - u[..., 0] * v[..., 2],
-            u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0],
-        ],
-        axis=-1,
-    )
+    return v / norm[..., None], norm
 
 
 def _swivel_parts(shoulder: np.ndarray, elbow: np.ndarray, wrist: np.ndarray):
     """Raw (unmirrored) Ψ and everything its gradient needs; arrays (..., 2[, 3])."""
     a = np.asarray(wrist, float) - np.asarray(shoulder, float)
     b = np.asarray(elbow, float) - np.asarray(shoulder, float)
-    n, a_norm = _unit(a)
-    c = n @ _UP  # cos of the axis' angle to the vertical
-    r, sigma = _unit(_UP - c[..., None] * n)
-    t = _cross(n, r)
-    x = np.einsum("...i,...i->...", b, r)
-    y = np.einsum("...i,...i->...", b, t)
-    z = np.einsum("...i,...i->...", b, n)
-    eps2 = x**2 + y**2  # squared distance of the elbow from the shoulder -> wrist axis
-    scale = a_norm + np.sqrt(np.einsum("...i,...i->...", b, b))
-    singular = (sigma < _SINGULAR) | (np.sqrt(eps2) < _SINGULAR * scale) | ~(scale > 0)
-    psi_raw = np.where(singular, np.nan, np.arctan2(y, x))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        n, a_norm = _unit(a)
+        c = n[..., 2]  # cos of the axis' angle to the vertical
+        r, sigma = _unit(_UP - c[..., None] * n)
+        t = (n @ _CROSS_UP) / sigma[..., None]  # n x r, as n x n = 0
+        x = np.einsum("...i,...i->...", b, r)
+        y = np.einsum("...i,...i->...", b, t)
+        z = np.einsum("...i,...i->...", b, n)
+        eps2 = x**2 + y**2  # squared distance of the elbow from the shoulder -> wrist axis
+        scale = a_norm + np.sqrt(np.einsum("...i,...i->...", b, b))
+        singular = (sigma < _SINGULAR) | (np.sqrt(eps2) < _SINGULAR * scale) | ~(scale > 0)
+        psi_raw = np.where(singular, np.nan, np.arctan2(y, x))
     return psi_raw, singular, n, r, t, x, y, z, eps2, c, sigma, a_norm
 
 
@@ -233,14 +226,11 @@ def forward_fill(psi: np.ndarray) -> np.ndarray:
 
 def _arm_frame(shoulder: np.ndarray, tcp_pos: np.ndarray, tcp_rot: np.ndarray):
     """Hand position relative to the shoulder (..., 2, 3) and orientation (..., 2, 3, 3), arm frame."""
-    p = np.asarray(tcp_pos, float) - np.asarray(shoulder, float)
-    rot = np.array(tcp_rot, dtype=float)
-    p = p * np.stack([_MIRROR, np.ones(3)])  # left arm: x -> -x
+    p = (np.asarray(tcp_pos, float) - np.asarray(shoulder, float)) * _ARM_MIRROR  # left arm: x -> -x
     # Left arm: reflect the axes (D R) and restore y = z × x of the TCP frame convention
     # (z approach, x palm normal; robots/README.md), i.e. D R D Rz(π). Plain D R D would leave a
     # symmetric left hand rotated by π about its approach axis relative to the right one.
-    rot[..., 0, :, :] = np.diag(_MIRROR) @ rot[..., 0, :, :] @ np.diag([1.0, -1.0, 1.0])
-    return p, rot
+    return p, np.asarray(tcp_rot, float) * _HAND_MIRROR
 
 
 def euler_xzy(rot: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -274,21 +264,17 @@ class SwivelPredictor:
         p, rot = _arm_frame(shoulder, tcp_pos, tcp_rot)
         th, ph, ps = euler_xzy(rot)
         x, y, z = p[..., 0], p[..., 1], p[..., 2]
-        cols = [
-            np.ones_like(th),
-            np.cos(th),
-            np.sin(th),
-            np.cos(th + ph),
-            np.sin(th + ph),
-            np.arctan2(z, y),
-            np.sin(ps),
-            np.arctan2(x, y),
-            np.cos(ps + th + ph),
-            np.cos(ph),
-            np.sin(ph),
-            np.cos(ps + th),
-        ]
-        return np.stack(cols, axis=-1)
+        out = np.empty((*th.shape, len(FEATURES)))
+        out[..., 0] = 1.0
+        out[..., 1], out[..., 2] = np.cos(th), np.sin(th)
+        out[..., 3], out[..., 4] = np.cos(th + ph), np.sin(th + ph)
+        out[..., 5] = np.arctan2(z, y)
+        out[..., 6] = np.sin(ps)
+        out[..., 7] = np.arctan2(x, y)
+        out[..., 8] = np.cos(ps + th + ph)
+        out[..., 9], out[..., 10] = np.cos(ph), np.sin(ph)
+        out[..., 11] = np.cos(ps + th)
+        return out
 
     def predict(self, shoulder: np.ndarray, tcp_pos: np.ndarray, tcp_rot: np.ndarray) -> np.ndarray:
         """Ψ_human (..., 2) in [0, 2π)."""
@@ -347,20 +333,31 @@ class SwivelPredictor:
 
 _EPS = 1e-6
 _AXES = np.concatenate([np.eye(3), -np.eye(3)])  # +x, +y, +z, -x, -y, -z
-_STEPS = _EPS * _AXES[:, None, None, :]  # (6, 1, 1, 3) moves of a point
-# world-frame turns, left-multiplied: the angular rows of the site Jacobian are world-frame
-_TURNS = Rotation.from_rotvec(_EPS * _AXES).as_matrix()[:, None, None]  # (6, 1, 1, 3, 3)
 # rows of _stepped's 13 at +eps and at -eps along x, y, z: block 0, then block 1
 _PLUS, _MINUS = [1, 2, 3, 7, 8, 9], [4, 5, 6, 10, 11, 12]
+
+
+def _step_tables() -> tuple[np.ndarray, np.ndarray]:
+    """Per block (0, 1), the 13 moves (2, 13, 1, 1, 3) and turns (2, 13, 1, 1, 3, 3) of
+    :func:`_stepped`: none in row 0 and in the other block's rows."""
+    moves, turns = np.zeros((2, 13, 1, 1, 3)), np.tile(np.eye(3), (2, 13, 1, 1, 1, 1))
+    # world-frame turns, left-multiplied: the angular rows of the site Jacobian are world-frame
+    rotations = Rotation.from_rotvec(_EPS * _AXES).as_matrix()
+    for block in (0, 1):
+        rows = slice(1 + 6 * block, 7 + 6 * block)
+        moves[block, rows, 0, 0] = _EPS * _AXES
+        turns[block, rows, 0, 0] = rotations
+    return moves, turns
+
+
+_MOVES, _TURNS = _step_tables()
 
 
 def _stepped(x: np.ndarray, block: int) -> np.ndarray:
     """13 rows of ``x`` (F, 2, 3) or (F, 2, 3, 3): ``x``, then two blocks of 6 in which ``x`` is
     moved (points) or turned (rotations) by ±:data:`_EPS` about each axis in block ``block`` (0 or
     1) and held in the other."""
-    held = np.broadcast_to(x, (6, *x.shape))
-    changed = _TURNS @ x[None] if x.ndim == 4 else x[None] + _STEPS  # rotations (F, 2, 3, 3) turn
-    return np.concatenate([x[None], *((changed, held) if block == 0 else (held, changed))])
+    return _TURNS[block] @ x[None] if x.ndim == 4 else x[None] + _MOVES[block]
 
 
 def prediction_and_jacobian(predictor: SwivelPredictor, state: RobotState) -> tuple[np.ndarray, np.ndarray]:
@@ -380,24 +377,50 @@ def prediction_and_jacobian(predictor: SwivelPredictor, state: RobotState) -> tu
     return psi[0], d_psi
 
 
+def _weight_gradient(parts: tuple, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """d weight / da and d weight / db (each (..., 2, 3)) of :func:`swivel_weight`, a the shoulder ->
+    wrist and b the shoulder -> elbow vector, from :func:`_swivel_parts`.
+
+    The weight is ``F(u) G(sigma)`` with u = 1 - z²/|b|² the squared sine of the upper arm to the
+    axis (z = b . n) and sigma = sqrt(1 - c²) the sine of the axis to the vertical (c = n . up), so
+    ``du/db = 2 (z² b / |b|² - z n) / |b|²``, ``du/da = -2 z (b - z n) / (|a| |b|²)`` and
+    ``dsigma/da = -c r / |a|`` (r the unit of up - c n).
+    """
+    _, _, n, r, _, _, _, z, eps2, c, sigma, a_norm = parts
+    f4 = _FADE**4
+    with np.errstate(invalid="ignore", divide="ignore"):
+        bb = np.einsum("...i,...i->...", b, b)
+        u = eps2 / bb
+        f_u, g_s = u**2 / (u**2 + f4), sigma**4 / (sigma**4 + f4)
+        df = 2.0 * u * f4 / (u**2 + f4) ** 2 * g_s
+        dg = 4.0 * sigma**3 * f4 / (sigma**4 + f4) ** 2 * f_u
+        zc = (z / bb)[..., None]
+        d_b = (2.0 * df[..., None] / bb[..., None]) * (zc * z[..., None] * b - z[..., None] * n)
+        d_a = (
+            -2.0 * df[..., None] * zc * (b - z[..., None] * n) - dg[..., None] * c[..., None] * r
+        ) / a_norm[..., None]
+    return d_a, d_b
+
+
 def swivel_parts_and_jacobians(state: RobotState) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Ψ (F, 2), :func:`swivel_weight` (F, 2), its derivative d weight / dq (F, 2, n) and the
-    uncapped dΨ/dq (F, 2, n) of ``state``, from one vectorised pass over the arm geometry (13 rows:
-    the configuration, then the wrist and the elbow moved by ±:data:`_EPS` along each axis). The weight
-    depends on the wrist and elbow relative to the shoulder alone: its derivative is central
-    differences in those, chained through the site Jacobians."""
+    uncapped dΨ/dq (F, 2, n) of ``state``, from one pass over the arm geometry: both are functions
+    of the shoulder -> wrist and shoulder -> elbow vectors (:func:`swivel_gradient`,
+    :func:`_weight_gradient`), chained through the site Jacobians in one product; 0 where Ψ is
+    singular."""
     if state.jac is None:
         raise ValueError("swivel_parts_and_jacobians needs a RobotState with Jacobians (jacobians=True)")
-    wrist, elbow = _stepped(state.wrist, 0), _stepped(state.elbow, 1)
-    shoulder = np.broadcast_to(state.shoulder, wrist.shape)
-    parts = _swivel_parts(shoulder, elbow, wrist)
-    psi, w = _angle_and_weight(parts, elbow - shoulder)  # (13, F, 2)
-    d = (w[_PLUS] - w[_MINUS]) / (2 * _EPS)  # (6, F, 2): d/da, d/db
-    jac = state.jac
-    d_a = jac[:, :, 2, :3, :] - jac[:, :, 0, :3, :]
-    d_b = jac[:, :, 1, :3, :] - jac[:, :, 0, :3, :]
-    d_weight = np.einsum("kfa,fakn->fan", d[:3], d_a) + np.einsum("kfa,fakn->fan", d[3:], d_b)
-    return psi[0], w[0], d_weight, _chained(_gradient_from_parts(tuple(p[0] for p in parts)), jac)
+    b = state.elbow - state.shoulder
+    parts = _swivel_parts(state.shoulder, state.elbow, state.wrist)
+    psi, w = _angle_and_weight(parts, b)
+    d = np.empty((*psi.shape, 2, 2, 3))  # (F, 2, [Ψ, weight], [a, b], 3)
+    _, d[..., 0, 1, :], d[..., 0, 0, :] = _gradient_from_parts(parts)
+    d[..., 1, 0, :], d[..., 1, 1, :] = _weight_gradient(parts, b)
+    jac = state.jac[:, :, :, :3, :]
+    ab = jac[:, :, [2, 1]] - jac[:, :, [0]]  # (F, 2, [a, b], 3, n): wrist, elbow relative to the shoulder
+    d_q = np.einsum("faqjk,fajkn->faqn", d, ab)
+    d_q[~np.isfinite(d_q)] = 0.0
+    return psi, w, d_q[:, :, 1], d_q[:, :, 0]
 
 
 # --- the criterion ---------------------------------------------------------------------------
@@ -472,17 +495,18 @@ class EEA(Criterion):
         # one pass each over the arm geometry and the regressor (13 rows): SLSQP calls this per evaluation
         psi, weight, d_weight, d_swivel = swivel_parts_and_jacobians(state)
         target, d_target = self.target_and_jacobian(state, sample, psi)
-        r = np.nan_to_num(eea_residual(psi, target))
+        r = eea_residual(psi, target)
+        r[np.isnan(r)] = 0.0
         d_psi = _capped(d_swivel, SWIVEL_CAP) - d_target
         jac = d_weight * r[..., None] + weight[..., None] * d_psi / np.pi  # (1, 2, n)
         return (weight * r)[0], jac[0]
 
-    def gradient(self, state, sample):
-        h, g = super().gradient(state, sample)
+    def gradient_of(self, e, jac):
+        h, g = super().gradient_of(e, jac)
         return h, _capped(g[None], GRADIENT_CAP)[0]
 
-    def part_gradients(self, state, sample):
-        h, g = super().part_gradients(state, sample)
+    def part_gradients_of(self, e, jac):
+        h, g = super().part_gradients_of(e, jac)
         return h, _capped(g, GRADIENT_CAP)
 
 

@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING
 import mujoco
 import numpy as np
 
+from hlik.criteria.angles import cross
 from hlik.criteria.base import Criterion, block_norm_gradient
 from hlik.human.kinematics import human_model, qpos_trajectory
 from hlik.human.motion import ARM_JOINTS, HumanMotion
@@ -117,13 +118,13 @@ def manipulability_derivative(robot: Robot, state: RobotState) -> np.ndarray:
     w = np.swapaxes(arm[..., 3:, :], -1, -2)  # (F, 2, k, 3) angular columns
     k = v.shape[-2]
     # dv[..., j, i, :] = d v_i / d q_j
-    before = np.cross(w[..., :, None, :], v[..., None, :, :])  # w_j x v_i
-    after = np.cross(w[..., None, :, :], v[..., :, None, :])  # w_i x v_j
+    before = cross(w[..., :, None, :], v[..., None, :, :])  # w_j x v_i
+    after = cross(w[..., None, :, :], v[..., :, None, :])  # w_i x v_j
     proximal = np.arange(k)[:, None] < np.arange(k)[None, :]  # j < i
     d_arm = np.where(proximal[..., None], before, after)  # (F, 2, k, k, 3)
     assert state.jac is not None  # checked by _arm_jacobian
     w_all = np.swapaxes(state.jac[:, :, SITE, 3:, :], -1, -2)  # (F, 2, n, 3)
-    d_jac = np.cross(w_all[..., :, None, :], v[..., None, :, :])  # (F, 2, n, k, 3) non-chain rule
+    d_jac = cross(w_all[..., :, None, :], v[..., None, :, :])  # (F, 2, n, k, 3) non-chain rule
     for i, cols in enumerate(robot.manipulability_chain):
         d_jac[:, i, cols] = d_arm[:, i]
     d_jac = np.swapaxes(d_jac, -1, -2)  # (F, 2, n, 3, k)
@@ -161,14 +162,23 @@ def man_jacobian(robot: Robot, state: RobotState, target: np.ndarray, lam: float
     ``dlog X = V (D ∘ (V^T dX V)) V^T`` (Daleckii–Krein) with ``X = V diag(mu) V^T`` and D the
     divided differences of log at mu.
     """
+    return man_residual_and_jacobian(robot, state, target, lam)[1]
+
+
+def man_residual_and_jacobian(
+    robot: Robot, state: RobotState, target: np.ndarray, lam: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`man_residual` (F, 2, 6) and :func:`man_jacobian` (F, 2, 6, n) from one eigen-
+    decomposition of X."""
     t_inv_sqrt, x = _scaled(robot, state, target, lam)
     mu, v = np.linalg.eigh(x)  # (F, 2, 3), (F, 2, 3, 3)
+    residual = mandel((v * np.log(mu)[..., None, :]) @ v.swapaxes(-1, -2))
     dm = manipulability_derivative(robot, state) / lam  # (F, 2, n, 3, 3)
     a = (v.swapaxes(-1, -2) @ t_inv_sqrt)[:, :, None]  # V^T T^{-1/2}, (F, 2, 1, 3, 3)
     inner = a @ dm @ a.swapaxes(-1, -2) * _log_divided_difference(mu)[:, :, None]
     vv = v[:, :, None]
     d_log = vv @ inner @ vv.swapaxes(-1, -2)  # (F, 2, n, 3, 3)
-    return np.swapaxes(mandel(d_log), -1, -2)
+    return residual, np.swapaxes(mandel(d_log), -1, -2)
 
 
 def man_cost(residual: np.ndarray) -> np.ndarray:
@@ -271,6 +281,10 @@ class MAN_r(Criterion):  # noqa: N801 - the paper's name
     def jacobian(self, state, sample):
         jac = man_jacobian(self.robot, state, sample.manip, self.scale)  # (F, 2, 6, n)
         return jac.reshape(len(state.q), 12, -1)
+
+    def __call__(self, state, sample):
+        e, jac = man_residual_and_jacobian(self.robot, state, sample.manip, self.scale)
+        return e[0].reshape(12), jac[0].reshape(12, -1)
 
     def cost(self, e):
         return man_cost(e.reshape(len(e), 2, 6))

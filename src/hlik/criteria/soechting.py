@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from hlik.criteria.angles import joint_difference
+from hlik.criteria.angles import joint_difference, wrap
 from hlik.criteria.base import Criterion, block_norm_gradient
 from hlik.robot.model import Robot
 from hlik.robot.state import RobotState, arm_lengths
@@ -76,16 +76,20 @@ def predict_arm(
     l_u = np.asarray(l_u, float)
     l_f = np.asarray(l_f, float)
     d = (np.asarray(wrist, float) - np.asarray(shoulder, float)) * _MIRROR  # arm frame
-    r_cm = 100.0 * MMM_ARM_LENGTH / (l_u + l_f) * np.linalg.norm(d, axis=-1)
+    r_cm = 100.0 * MMM_ARM_LENGTH / (l_u + l_f) * np.sqrt(np.einsum("...i,...i->...", d, d))
     chi = np.degrees(np.arctan2(d[..., 0], d[..., 1]))
     psi = np.degrees(np.arctan2(d[..., 2], np.hypot(d[..., 0], d[..., 1])))
-    theta, eta, beta, alpha = np.moveaxis(np.radians(dark_pointing(r_cm, chi, psi)), -1, 0)
+    angles = np.radians(dark_pointing(r_cm, chi, psi))
+    theta, eta, beta, alpha = angles[..., 0], angles[..., 1], angles[..., 2], angles[..., 3]
     u = np.stack([np.sin(theta) * np.sin(eta), np.sin(theta) * np.cos(eta), -np.cos(theta)], -1)
     f = np.stack([np.sin(beta) * np.sin(alpha), np.sin(beta) * np.cos(alpha), np.cos(beta)], -1)
     u = u * _MIRROR  # back to the body / base frame
     f = f * _MIRROR
     elbow = np.asarray(shoulder, float) + l_u[:, None] * u
     return elbow, mmm_angles(u, f)
+
+
+_WRIST_STEPS = np.concatenate([np.zeros((1, 3)), np.eye(3), -np.eye(3)])  # (7, 3): none, +, -
 
 
 def prediction_derivatives(
@@ -98,11 +102,11 @@ def prediction_derivatives(
     Central differences of :func:`predict_arm`, in one vectorised call with the prediction itself;
     the angles' differences are wrapped, so s_x's cut at ±π/2 does not show.
     """
-    step = eps * np.concatenate([np.zeros((1, 3)), np.eye(3), -np.eye(3)])  # (7, 3): none, +, -
-    moved = np.asarray(wrist, float)[None] + step.reshape(7, *([1] * (np.ndim(wrist) - 1)), 3)
+    step = eps * _WRIST_STEPS.reshape(7, *([1] * (np.ndim(wrist) - 1)), 3)
+    moved = np.asarray(wrist, float)[None] + step
     elbow, angles = predict_arm(np.broadcast_to(shoulder, moved.shape), moved, l_u, l_f)
     d_elbow = (elbow[1:4] - elbow[4:]) / (2 * eps)  # (3 coordinates, ..., 2, 3 outputs)
-    d_angles = (np.angle(np.exp(1j * (angles[1:4] - angles[4:])))) / (2 * eps)
+    d_angles = wrap(angles[1:4] - angles[4:]) / (2 * eps)
     return elbow[0], angles[0], np.moveaxis(d_elbow, 0, -1), np.moveaxis(d_angles, 0, -1)
 
 
@@ -174,8 +178,9 @@ def soa_q_residual(robot: Robot, state: RobotState, idx: np.ndarray, targets: np
 
 def soa_q_jacobian(state: RobotState, idx: np.ndarray) -> np.ndarray:
     """(F, k, n) selection rows (the prediction held fixed)."""
-    sel = np.eye(state.q.shape[1])[idx]
-    return np.broadcast_to(sel, (len(state.q), *sel.shape)).copy()
+    sel = np.zeros((len(state.q), len(idx), state.q.shape[1]))
+    sel[:, np.arange(len(idx)), idx] = 1.0
+    return sel
 
 
 def soa_q_cost(residual: np.ndarray) -> np.ndarray:
@@ -247,11 +252,10 @@ class SOA_q(Criterion):  # noqa: N801
         _, angles, _, d_angles = prediction_derivatives(state.shoulder, state.wrist, self.l_u, self.l_f)
         f = len(angles)
         # d targets / d angles (F, k, 2, 3): the mapping (and its dynamic offsets), central differences
-        step = eps * np.eye(6).reshape(6, 1, 2, 3)
-        batch = np.concatenate([angles[None] + step, angles[None] - step]).reshape(-1, 2, 3)
-        idx, targets = soa_q_targets(self.robot, batch)
-        targets = targets.reshape(2, 6, f, len(idx))
-        d_targets = np.moveaxis((targets[0] - targets[1]) / (2 * eps), 0, -1).reshape(f, len(idx), 2, 3)
+        step = eps * np.concatenate([np.zeros((1, 6)), np.eye(6), -np.eye(6)]).reshape(13, 1, 2, 3)
+        idx, targets = soa_q_targets(self.robot, (angles[None] + step).reshape(-1, 2, 3))
+        targets = targets.reshape(13, f, len(idx))  # the prediction, then +eps and -eps per angle
+        d_targets = np.moveaxis((targets[1:7] - targets[7:]) / (2 * eps), 0, -1).reshape(f, len(idx), 2, 3)
         d_angles_dq = _relative_jacobian(state, d_angles)  # (F, 2, 3, n)
-        e = soa_q_residual(self.robot, state, idx, soa_q_targets(self.robot, angles)[1])
+        e = soa_q_residual(self.robot, state, idx, targets[0])
         return e[0], (soa_q_jacobian(state, idx) - np.einsum("fkac,facn->fkn", d_targets, d_angles_dq))[0]

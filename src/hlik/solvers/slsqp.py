@@ -257,10 +257,11 @@ def build_losses(
 def loss_curvature(loss: Loss, e: np.ndarray, split: bool, eps: float = 1e-6) -> np.ndarray:
     """(m, m) Hessian of ``loss`` (its parts' losses if ``split``) in the residual ``e`` (m,), PSD.
 
-    Closed form where each part's cost is the norm of its rows (``Term.part_form = "norm"``):
-    ``gamma² [l'(x)/x (I - u u^T) + l''(x) u u^T]`` on them, x = gamma |e_p|, u = e_p / |e_p|, smooth
-    through e_p = 0; and for the mean of squares. Else by central differences of the loss's analytic
-    gradient (``eps`` relative to the residual's size), negative curvature clipped.
+    Closed form where each part's cost is the norm of its rows (``Term.part_form = "norm"``, times
+    ``Term.norm_scale``): ``g² [l'(x)/x (I - u u^T) + l''(x) u u^T]`` on them, g = gamma norm_scale,
+    x = g |e_p|, u = e_p / |e_p|, smooth through e_p = 0; and for the mean of squares. Else by
+    central differences of the loss's analytic gradient (``eps`` relative to the residual's size),
+    negative curvature clipped.
     """
     term, gamma, m = loss.term, loss.gamma, len(e)
     rows = term.part_rows(m) if split else (np.arange(m),)
@@ -273,10 +274,10 @@ def loss_curvature(loss: Loss, e: np.ndarray, split: bool, eps: float = 1e-6) ->
             part = e[r]
             norm = float(np.sqrt(part @ part))
             u = part / norm if norm > 0.0 else np.zeros(len(r))
-            x = gamma * norm
+            x = gamma * term.norm_scale * norm
             across, along = groove_secant(x), float(groove_curvature(np.array(x)))
             phi[np.ix_(r, r)] = across * np.eye(len(r)) + (along - across) * np.outer(u, u)
-        return phi * loss.weight * gamma**2 / len(rows)
+        return phi * loss.weight * (gamma * term.norm_scale) ** 2 / len(rows)
     if form == "squares":
         g = 2.0 * e / m
         x = gamma * float(e @ e) / m
@@ -350,10 +351,13 @@ class Objective:
         self.best: np.ndarray | None = None
         self.best_value, self.evaluations, self.scale = np.inf, 0, 1.0
         self.chart: Chart | None = None
+        self._start: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
         if q0 is None or frame is None:
             return
         if self.precondition == "gauss_newton":
-            self.chart = Chart.at(q0, self.gauss_newton(q0))
+            hessian, h, dh_dq = self._gauss_newton_pass(q0)
+            self.chart = Chart.at(q0, hessian)
+            self._start = (q0.copy(), h, dh_dq)  # NLopt evaluates x = 0 first: kept, not redone
         if self.precondition == "scale" or (self.precondition == "gauss_newton" and self.chart is None):
             self.scale = objective_scale(self.weights, self.gammas, *self.costs_and_gradients(q0))
 
@@ -364,12 +368,31 @@ class Objective:
         (:func:`loss_curvature`). Exact for least squares; for a norm cost it keeps the curvature
         across the error that the rank-one ``grad h grad h^T`` misses (the norm's own Hessian).
         """
+        return self._gauss_newton_pass(q)[0]
+
+    def _gauss_newton_pass(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`gauss_newton` and :meth:`costs_and_gradients` at ``q`` (n,) from one pass."""
         state = robot_state(self.robot, q, True, self.data, self.sites)
-        hessian = np.zeros((len(q), len(q)))
-        for loss, split in zip(self.losses, self.split):
+        m = int(self.slots[-1])
+        hessian, h, dh_dq = np.zeros((len(q), len(q))), np.empty(m), np.empty((m, len(q)))
+        for i, (loss, split) in enumerate(zip(self.losses, self.split)):
             e, jac = loss.term.exact(state, self.sample)
             hessian += jac.T @ loss_curvature(loss, e, split) @ jac
-        return hessian
+            self._piece_gradients(i, e, jac, h, dh_dq)
+        if self.numeric:
+            dh_dq[list(self.numeric)] = self._numeric_gradient(q, h[list(self.numeric)])
+        return hessian, h, dh_dq
+
+    def _piece_gradients(
+        self, i: int, e: np.ndarray, jac: np.ndarray, h: np.ndarray, dh_dq: np.ndarray
+    ) -> None:
+        """Loss ``i``'s costs and gradients, into its pieces of ``h`` (m,) and ``dh_dq`` (m, n), from
+        its term's exact residual ``e`` and Jacobian ``jac``."""
+        term, piece = self.losses[i].term, slice(self.slots[i], self.slots[i + 1])
+        if self.split[i]:
+            h[piece], dh_dq[piece] = term.part_gradients_of(e, jac)
+        else:
+            h[piece.start], dh_dq[piece.start] = term.gradient_of(e, jac)
 
     @property
     def sample(self) -> Sample:
@@ -396,15 +419,13 @@ class Objective:
     def costs_and_gradients(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The costs h (m,) at ``q`` (n,) per piece and their gradients (m, n) from the terms'
         Jacobians."""
+        if self._start is not None and np.array_equal(q, self._start[0]):
+            return self._start[1].copy(), self._start[2].copy()
         state = robot_state(self.robot, q, True, self.data, self.sites)
         m = int(self.slots[-1])
         h, dh_dq = np.empty(m), np.empty((m, len(q)))
         for i, loss in enumerate(self.losses):
-            piece = slice(self.slots[i], self.slots[i + 1])
-            if self.split[i]:
-                h[piece], dh_dq[piece] = loss.term.part_gradients(state, self.sample)
-            else:
-                h[piece.start], dh_dq[piece.start] = loss.term.gradient(state, self.sample)
+            self._piece_gradients(i, *loss.term.exact(state, self.sample), h, dh_dq)
         if self.numeric:
             dh_dq[list(self.numeric)] = self._numeric_gradient(q, h[list(self.numeric)])
         return h, dh_dq
