@@ -84,9 +84,10 @@ def score_bars(ranking: Ranking, path: Path, best: int = 4) -> Path:
     ax.set_xticks(np.arange(len(labels)) + 0.4 - width / 2, labels, rotation=60, ha="right")
     ax.set_ylim(0, 1)
     ax.set_ylabel("score")
-    ax.legend(fontsize=7, ncols=2, loc="upper left", bbox_to_anchor=(1.0, 1.0))
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.0, 1.0))
+    jm = " and JM" if any(r["approach"].startswith("jm") for r in rows[best:]) else ""
     ax.set_title(
-        f"The {best} best approaches and JM by m_hl,f (in brackets), {ranking.scenario} scenario (cf. Fig. 6)"
+        f"The {best} best approaches{jm} by m_hl,f (in brackets), {ranking.scenario} scenario (cf. Fig. 6)"
     )
     return _save(fig, path)
 
