@@ -15,7 +15,7 @@ from scipy.signal import savgol_filter
 from sklearn.decomposition import PCA
 
 from hlik.criteria.angles import joint_difference
-from hlik.criteria.base import Criterion
+from hlik.criteria.base import Criterion, block_norm_cost, block_norm_gradient
 from hlik.robot.model import Robot
 
 if TYPE_CHECKING:
@@ -215,5 +215,4 @@ class MIS(Criterion):
         return self.outside @ self.residual(state, sample)[0], self.outside @ jac
 
     def metrics(self, e):
-        norm = np.linalg.norm(e, axis=-1)
-        return self.norm_scale * norm, self.norm_scale * e / np.maximum(norm, 1e-12)[..., None]
+        return self.norm_scale * block_norm_cost(e, 1), self.norm_scale * block_norm_gradient(e, 1)
