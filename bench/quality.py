@@ -7,7 +7,13 @@ An approach is a solver with the criteria it adds, e.g. ``jm``, ``qp``, ``qp+SYN
 robot's shoulder (the frames the robot can reach); ``--placement`` the rule placing the robot
 (``reach``, ``mapped``, ``optimize``, ``shoulders``, ``X,Y,YAW``; default the robot's); ``capped %``
 the share of frames that ended at the solver's iteration cap; ``speed`` the largest joint speed over
-its limit in any step (any take) and ``contact %`` the share of frames in self-collision.
+its limit in any step (any take) and ``contact %`` the share of frames in self-collision. What a
+controller checks (:mod:`hlik.executable`): ``acc`` the largest joint acceleration over its limit,
+``acc>%`` the share of frames above an acceleration limit, ``tau`` the largest torque over its
+effort limit, ``tau>%`` the frames above one, ``stop %`` the frames with a joint within 0.5 deg of a
+stop, ``floor cm`` the lowest point of the robot against the floor (worst take), ``lag %`` the
+frames with a hand more than 5 cm off, ``fORI`` the median hand orientation error in degrees. An
+approach ``solver@stack+...`` takes its weights from that stack (``slsqp@paper_opt``).
 
 Run by hand: ``python bench/quality.py [--robots armar3,armar6] [--approaches qp,qp+SYN]
 [--set criterion_cost=0.1]`` (``--set`` overrides a field of the solvers' settings).
@@ -24,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 import hlik
-from hlik.criteria.functional import position_error, relative_errors
+from hlik.criteria.functional import position_error, relative_errors, rotation_angle
 from hlik.criteria.learned import learn
 from hlik.metrics import evaluate
 from hlik.placement_search import optimize_placement
@@ -58,12 +64,14 @@ def run(
 ) -> dict:
     robot = hlik.load_robot(robot_name)
     solver, *criteria = approach.split("+")
-    stack_name = stack_name or ("relative_pose" if scenario == "relative" else "ee_pose")
+    solver, _, own_stack = solver.partition("@")
+    stack_name = own_stack or stack_name or ("relative_pose" if scenario == "relative" else "ee_pose")
     stack = load_stack(stack_name).with_criteria(criteria)
     learned = learn(robot)
     settings = replace(stack.settings(solver), **overrides) if solver != "jm" else None
     qp_overrides = overrides if solver == "qp" else {}
     rows, fpos, freach, off, times, capped, speed, contact = [], [], [], [], [], [], [], []
+    acc, acc_over, tau, tau_over, stop, floor, fori = [], [], [], [], [], [], []
     for take in takes:
         motion = hlik.load_motion(take, rate=100.0)
         motion = scale_subject(motion.crop(1.0, min(1.0 + seconds, motion.duration)), robot)
@@ -82,6 +90,14 @@ def run(
         rows.append((ev.m_hl, ev.m_f, ev.m_hl_f))
         speed.append(ev.max_speed_ratio)
         contact.append(ev.collisions)
+        c = ev.controller
+        acc.append(c.acceleration_ratio.max(initial=0.0))
+        acc_over.append(c.acceleration_ratio > 1.0 + 1e-6)
+        tau.append(c.torque_ratio.max(initial=0.0))
+        tau_over.append(c.torque_ratio > 1.0 + 1e-6)
+        stop.append(c.at_stop)
+        floor.append(min(c.lowest_point, c.base_height) if c.lowest_point < 0 else c.lowest_point)
+        fori.append(rotation_angle(traj.tcp_rot, traj.targets.rot).ravel())
         fpos.append(err.ravel())
         freach.append(err[reachable(robot, traj)])
         off.append(relative_errors(traj.tcp_pos, traj.tcp_rot, traj.targets.pos, traj.targets.rot)[0])
@@ -97,6 +113,14 @@ def run(
         "capped": 100 * np.mean(np.concatenate(capped)),
         "speed": max(speed),
         "contact": 100 * np.mean(np.concatenate(contact)),
+        "acc": max(acc),
+        "acc_over": 100 * np.mean(np.concatenate(acc_over)),
+        "tau": max(tau),
+        "tau_over": 100 * np.mean(np.concatenate(tau_over)),
+        "stop": 100 * np.mean(np.concatenate(stop)),
+        "floor": 100 * max(floor, key=abs),
+        "lag": 100 * np.mean(np.concatenate([np.any(e.reshape(-1, 2) > 0.05, axis=1) for e in fpos])),
+        "fori": np.degrees(np.median(np.concatenate(fori))),
     }
 
 
@@ -126,6 +150,14 @@ def main() -> None:
         ("capped %", 8),
         ("speed", 6),
         ("contact %", 9),
+        ("acc", 5),
+        ("acc>%", 5),
+        ("tau", 5),
+        ("tau>%", 5),
+        ("stop %", 6),
+        ("floor cm", 8),
+        ("lag %", 5),
+        ("fORI", 5),
     )
     print(head + " ".join(f"{name:>{width}s}" for name, width in cols), flush=True)
     for robot_name in args.robots.split(","):
@@ -135,7 +167,9 @@ def main() -> None:
             print(
                 f"{robot_name:11s} {approach:18s} {r['m_hl']:6.3f} {r['m_f']:6.3f} {r['m_hl_f']:6.3f} "
                 f"{100 * r['fpos']:8.2f} {100 * r['freach']:8.2f} {100 * r['fpos_off']:7.2f} {r['ms']:8.2f} "
-                f"{r['capped']:8.1f} {r['speed']:6.2f} {r['contact']:9.1f}",
+                f"{r['capped']:8.1f} {r['speed']:6.2f} {r['contact']:9.1f} {r['acc']:5.2f} "
+                f"{r['acc_over']:5.1f} {r['tau']:5.2f} {r['tau_over']:5.1f} {r['stop']:6.1f} "
+                f"{r['floor']:8.2f} {r['lag']:5.1f} {r['fori']:5.1f}",
                 flush=True,
             )
 

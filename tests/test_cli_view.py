@@ -210,7 +210,9 @@ def test_solver_and_body_warnings_count_frames(
         targets=SimpleNamespace(pos=on_target, rot=rot),
         diagnostics=diag,
     )
-    ev = SimpleNamespace(collisions=np.arange(n) < touching, max_speed_ratio=speed, scenario=scenario)
+    ev = SimpleNamespace(
+        collisions=np.arange(n) < touching, max_speed_ratio=speed, scenario=scenario, controller=_checks(n)
+    )
     notes = _run_warnings(traj, SimpleNamespace(rate=native), ev, rate)
     assert all("\n" not in note for note in notes)
     expected = [(failed, "failed"), (capped, "iteration cap"), (touching, "self-collision")]
@@ -247,7 +249,9 @@ def test_a_hand_turned_away_from_its_target_is_warned_about():
         diagnostics=SimpleNamespace(n_failed=0, n_unconverged=0),
     )
     for scenario in ("pose", "relative"):
-        ev = SimpleNamespace(collisions=np.zeros(n, bool), max_speed_ratio=1.0, scenario=scenario)
+        ev = SimpleNamespace(
+            collisions=np.zeros(n, bool), max_speed_ratio=1.0, scenario=scenario, controller=_checks(n)
+        )
         notes = [
             note for note in _run_warnings(traj, SimpleNamespace(rate=100.0), ev, 100.0) if "turned" in note
         ]
@@ -462,3 +466,52 @@ def test_the_printed_evaluate_command_gives_the_runs_scores(tmp_path, takes):
     scores = json.loads(CliRunner().invoke(app, [*command[1:], "--json"]).stdout)
     shown = next(x for x in run.stdout.splitlines() if x.startswith("human likeness"))
     assert f"m_hl = {scores['m_hl']:.3f}" in shown and f"m_hl,f = {scores['m_hl_f']:.3f}" in shown, shown
+
+
+def _checks(n: int, **changes):
+    """ControllerChecks of ``n`` frames of a one-joint robot that keeps every limit, with ``changes``."""
+    from dataclasses import replace
+
+    from hlik.executable import ControllerChecks
+
+    quiet = ControllerChecks(
+        joint_names=("j",),
+        acceleration=np.zeros((n, 1)),
+        acceleration_ratio=np.zeros(n),
+        jerk=np.zeros(n),
+        torque=np.zeros((n, 1)),
+        torque_ratio=np.zeros(n),
+        at_stop=np.zeros(n, bool),
+        lowest=np.zeros(n),
+        base_height=0.0,
+        has_acceleration_limits=True,
+        has_effort_limits=True,
+        acceleration_limit=np.ones(1),
+        effort_limit=np.ones(1),
+    )
+    return replace(quiet, **changes)
+
+
+@pytest.mark.parametrize("solver", ["jm", "qp"])
+def test_each_exceeded_controller_limit_gets_one_warning(solver):
+    from hlik.cli import _controller_warnings
+
+    n = 100
+    share = lambda k: f"{k} of {n} frames"  # noqa: E731
+    tracking = solver != "jm"
+    assert _controller_warnings(_checks(n), tracking, share) == []
+    over = np.where(np.arange(n) < 7, 1.5, 0.5)
+    cases = {
+        "accelerations exceed": dict(acceleration_ratio=over, acceleration=over[:, None]),
+        "torques exceed": dict(torque_ratio=over, torque=over[:, None]),
+        "of a stop": dict(at_stop=np.arange(n) < 7),
+        "not on the floor": dict(base_height=0.05),
+        "below the floor": dict(lowest=np.full(n, -0.05)),
+    }
+    for words, change in cases.items():
+        notes = _controller_warnings(_checks(n, **change), tracking, share)
+        # jm maps the joints: its accelerations are not warned about, its torques are
+        expected = 0 if (words == "accelerations exceed" and not tracking) else 1
+        assert len(notes) == expected and all(words in note for note in notes), (words, notes)
+        if expected and words in ("accelerations exceed", "torques exceed", "of a stop"):
+            assert "7 of 100 frames" in notes[0]

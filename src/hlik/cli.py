@@ -199,8 +199,9 @@ def run(
         typer.Option(
             help="Where the robot stands: reach (reachability maps, the paper's), mapped (where the "
             "mapped joint angles reach the hands), optimize (the best of those by m_hl,f of a fast QP "
-            "run), shoulders (on the human's), or X,Y,YAW (world m, m, deg). Default: the robot's "
-            "(robots/<name>.toml; reach, 2-Panda mapped).",
+            "run), shoulders (on the human's), or X,Y,YAW (world m, m, deg); each stands the robot on "
+            "the floor. X,Y,YAW,Z also sets the base height (m; off the floor, warned). Default: the "
+            "robot's (robots/<name>.toml; reach, 2-Panda mapped).",
             show_default=False,
         ),
     ] = None,
@@ -394,8 +395,9 @@ def _run_warnings(traj: Trajectory, motion: HumanMotion, ev: Evaluation, rate: f
     n = traj.n_frames
     share = lambda k: f"{k} of {n} frames ({100 * k / n:.0f} %)"  # noqa: E731
     notes = []
-    # jm maps the joint angles: by design it neither tracks the hands nor keeps the speed limits
-    # (the summary says how far off it is); warning on every jm run would bury the real warnings.
+    # jm maps the joint angles: by design it neither tracks the hands nor keeps the speed and
+    # acceleration limits (the summary says how far off it is); warning on every jm run would bury
+    # the real warnings. Torques, stops and the floor are warned about for every solver.
     tracking = traj.solver != "jm"
 
     def often(err: np.ndarray, limit: float) -> int:
@@ -440,10 +442,62 @@ def _run_warnings(traj: Trajectory, motion: HumanMotion, ev: Evaluation, rate: f
         notes.append(f"the robot is in self-collision in {share(touching)}")
     if tracking and ev.max_speed_ratio > 1.0 + 1e-6:
         notes.append(f"joint speeds exceed their limits, at most {ev.max_speed_ratio:.2f} x the limit")
-    return notes
+    return notes + _controller_warnings(ev.controller, tracking, share)
 
 
 LAG = 0.05  # m: a hand this far off its target is reported as lagging
+STOP_SHARE = 0.05  # a joint on a stop in more frames than this is warned about
+
+
+def _controller_line(c) -> str:
+    """The summary's ``controller`` row: what :class:`hlik.executable.ControllerChecks` found."""
+    j = c.to_json()
+    parts = []
+    if c.has_acceleration_limits:
+        parts.append(
+            f"peak acceleration {j['max_acceleration_ratio']:.2f} of its limit ({j['acceleration_joint']}), "
+            f"{j['frames_over_acceleration']} frames over"
+        )
+    else:
+        parts.append("no acceleration limits given")
+    parts.append(f"peak jerk {j['max_jerk']:.0f} rad/s³")
+    if c.has_effort_limits:
+        parts.append(
+            f"peak torque {j['max_torque_ratio']:.2f} of its limit ({j['torque_joint']}, "
+            f"{j['max_torque']:.1f} N m), {j['frames_over_effort']} frames over"
+        )
+    else:
+        parts.append(f"peak torque {j['max_torque']:.1f} N m ({j['torque_joint']}; no effort limits given)")
+    parts.append(f"a joint within 0.5° of a stop in {100 * j['share_at_stop']:.1f} % of frames")
+    parts.append(f"base at z {j['base_height']:.3f} m, lowest point {j['lowest_point']:.3f} m")
+    return "; ".join(parts)
+
+
+def _controller_warnings(c, tracking: bool, share) -> list[str]:
+    """One ``warning:`` line for each limit :class:`ControllerChecks` ``c`` finds exceeded."""
+    from hlik.executable import FLOOR_TOLERANCE
+
+    j, notes = c.to_json(), []
+    if tracking and c.frames_over_acceleration:
+        notes.append(
+            f"joint accelerations exceed their limits in {share(c.frames_over_acceleration)}, at most "
+            f"{j['max_acceleration_ratio']:.2f} x the limit ({j['acceleration_joint']})"
+        )
+    if c.frames_over_effort:
+        notes.append(
+            f"joint torques exceed their effort limits in {share(c.frames_over_effort)}, at most "
+            f"{j['max_torque_ratio']:.2f} x the limit ({j['torque_joint']}, {j['max_torque']:.0f} N m)"
+        )
+    if c.share_at_stop > STOP_SHARE:
+        notes.append(
+            f"a joint is within 0.5° of a stop in {share(int(j['frames_at_stop']))} "
+            "(a controller keeps a margin)"
+        )
+    if abs(c.base_height) > 1e-3:
+        notes.append(f"the robot's base is at z = {c.base_height:.3f} m, not on the floor")
+    if c.lowest_point < -FLOOR_TOLERANCE:
+        notes.append(f"the robot reaches {100 * -c.lowest_point:.1f} cm below the floor")
+    return notes
 
 
 def _lag_spans(fpos: np.ndarray, times: np.ndarray, shown: int = 3) -> str:
@@ -474,15 +528,15 @@ def _check_rate(rate: float) -> None:
 
 
 def _check_placement(spec: str | None) -> None:
-    """``X,Y,YAW`` must be three finite numbers (a NaN base pose scores NaN without a word)."""
+    """``X,Y,YAW[,Z]`` must be finite numbers (a NaN base pose scores NaN without a word)."""
     if spec is None or "," not in spec:
         return
     try:
         values = [float(v) for v in spec.split(",")]
     except ValueError:
         return  # placement_from_spec says what it expects
-    if len(values) == 3 and not all(math.isfinite(v) for v in values):
-        raise HlikError(f"--placement {spec}: X, Y and YAW must be finite numbers (m, m, deg)")
+    if len(values) in (3, 4) and not all(math.isfinite(v) for v in values):
+        raise HlikError(f"--placement {spec}: X, Y, YAW (and Z) must be finite numbers (m, m, deg, m)")
 
 
 def _file_stem(*parts: str) -> str:
@@ -604,6 +658,7 @@ def _run_summary(title: str, traj, motion, solve_time: float, rrd: Path, npz: Pa
         else f"max joint speed {speed:.2f} x its limit"
     )
     table.add_row("body", f"{int(np.count_nonzero(ev.collisions))} frames in self-collision; {speeds}")
+    table.add_row("controller", _controller_line(ev.controller))
     lag = _lag_spans(fpos, traj.times) if ev.scenario == "pose" else ""  # relative: no hand targets
     if lag:
         reason = (

@@ -16,6 +16,7 @@ from hlik.criteria.base import Sample
 from hlik.criteria.learned import Learned
 from hlik.criteria.smoothness import history
 from hlik.errors import SettingsError
+from hlik.executable import ControllerChecks, controller_checks
 from hlik.human.motion import frame_period
 from hlik.problem.reference import HumanReference, reference_sample
 from hlik.robot.model import Robot, self_contacts
@@ -36,6 +37,8 @@ class Evaluation:
         scenario: ``pose`` (end-effector poses) or ``relative`` (relative pose of the hands).
         speed_ratio: (T - 1,) each step's largest joint speed over that joint's limit (> 1: too fast).
         collisions: (T,) True where the robot touches itself (:func:`hlik.robot.model.self_contacts`).
+        controller: What a controller checks: accelerations, jerk, torques, stops, floor
+            (:mod:`hlik.executable`).
         metric: The weights and x0 the scores used (Table III unless another was given).
     """
 
@@ -48,6 +51,7 @@ class Evaluation:
     speed_ratio: np.ndarray
     collisions: np.ndarray
     metric: unified.Metric
+    controller: ControllerChecks
 
     @property
     def max_speed_ratio(self) -> float:
@@ -71,6 +75,7 @@ class Evaluation:
             "scenario": self.scenario,
             "collisions": int(np.count_nonzero(self.collisions)),
             "max_speed_ratio": self.max_speed_ratio,
+            "controller": self.controller.to_json(),
             "metric": self.metric.source,
         }
 
@@ -133,6 +138,7 @@ def evaluate(
         speed_ratio=speed_ratios(traj, robot),
         collisions=collision_frames(traj, robot),
         metric=metric,
+        controller=controller_checks(traj, robot),
     )
 
 

@@ -4,7 +4,8 @@ Beyond the paper. Reachability (``reach``) places the robot where every hand pos
 the joint mapping (``mapped``) where the human's own joint angles would put the hands on target.
 The first favours tracking, the second human likeness. This search retargets a short subsample of
 the motion from candidates on the line between the two (and the shoulder placement) with a fast
-solver and keeps the candidate with the highest unified metric m_hl,f.
+solver and keeps the candidate with the highest unified metric m_hl,f. Every candidate stands the
+robot on its floor (:func:`~hlik.problem.placement.floor_height`): the search is over x, y and yaw.
 """
 
 from __future__ import annotations
@@ -69,6 +70,9 @@ def optimize_placement(
 
 
 def _between(a: Placement, b: Placement, t: float) -> Placement:
-    """The upright placement a fraction ``t`` of the way from ``a`` to ``b`` (shortest yaw)."""
+    """The upright placement a fraction ``t`` of the way from ``a`` to ``b`` (shortest yaw), at
+    ``a``'s height (the floor's)."""
     yaw = a.yaw + t * np.angle(np.exp(1j * (b.yaw - a.yaw)))
-    return Placement(yaw_rotation(yaw), (1 - t) * a.translation + t * b.translation, "between")
+    translation = (1 - t) * a.translation + t * b.translation
+    translation[2] = a.translation[2]
+    return Placement(yaw_rotation(yaw), translation, "between")

@@ -1,7 +1,10 @@
 """Where the robot stands in the human's world: a rigid transform ``world <- robot base``.
 
-The rules, all upright (a yaw about the vertical) with the base at the height that puts the
-robot's shoulders at the human's (``Robot.placement`` names each robot's default):
+Every rule stands the robot on the human's floor (world z = 0): the base is upright (a yaw about
+the vertical) at the robot's own height, :func:`floor_height` (0 for a model that follows the
+convention of robots/README.md, its floor at z = 0 of the base frame), and a rule chooses only x, y
+and yaw (``Robot.placement`` names each robot's default). A robot smaller than the subject is not
+sunk to the subject's shoulders: the subject is scaled to it (``subject_scale``, :mod:`hlik.problem.scale`).
 
 - ``shoulders``: the midpoint of the robot's shoulders on the human's at the first frame, facing the
   same way (heading from the shoulder line, so a slouch or a turned pelvis does not tilt the robot).
@@ -11,16 +14,20 @@ robot's shoulders at the human's (``Robot.placement`` names each robot's default
   filtered, and the best candidate wins.
 - ``mapped``: where the joint-mapped human pose puts the robot's hands on the human's (a trimmed
   least-squares fit over all frames).
-- ``X,Y,YAW``: given by the user (:func:`placement_from_spec`). ``optimize``, which retargets from
+- ``X,Y,YAW``: given by the user (:func:`placement_from_spec`); ``X,Y,YAW,Z`` also gives the base
+  height, off the floor (:func:`placement_notes` says so). ``optimize``, which retargets from
   several of these, lives in :mod:`hlik.placement_search` (it needs a solver).
 """
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
+import mujoco
 import numpy as np
 from scipy.ndimage import uniform_filter
+from scipy.spatial import ConvexHull, QhullError
 
 from hlik.errors import SettingsError
 from hlik.fk import site_poses
@@ -30,6 +37,7 @@ from hlik.robot.model import SIDES, Robot, joint_mapping, tcp_poses
 from hlik.robot.reachability import ReachabilityMap, reachability_map
 
 PLACEMENTS = ("reach", "mapped", "shoulders")
+FLOOR_TOLERANCE = 1e-3  # m: a base this close to the robot's floor height stands on the floor
 
 
 @dataclass(frozen=True, eq=False)
@@ -75,13 +83,97 @@ class Placement:
 
 
 def shoulder_placement(robot: Robot, human: HumanKinematics) -> Placement:
-    """Shoulder midpoints coincide at the first frame, both facing the same way; robot at home."""
+    """Shoulder midpoints coincide at the first frame seen from above, both facing the same way;
+    robot at home, standing on the floor (its shoulders at their own height, not the human's)."""
     ids = np.array([robot.site_id(s, "shoulder") for s in SIDES])
     pos, _ = site_poses(robot.model, robot.home[None], ids)
     r_rob, o_rob = shoulder_frame(pos[0, 0], pos[0, 1])
     r_hum, o_hum = shoulder_frame(human.shoulder[0, 0], human.shoulder[0, 1])
     rotation = r_hum @ r_rob.T
-    return Placement(rotation, o_hum - rotation @ o_rob, "shoulders")
+    translation = o_hum - rotation @ o_rob
+    translation[2] = floor_height(robot)
+    return Placement(rotation, translation, "shoulders")
+
+
+def floor_height(robot: Robot) -> float:
+    """Height of the base origin above the floor when the robot stands on it, m: minus the lowest
+    point of its geometry (visual and collision) at home, in the base frame. 0 for the bundled
+    models and the G1 example, whose floor is z = 0 of the base frame (robots/README.md; tested).
+    Rounded to 0.1 mm (a summary then reads 0.00, not -0.00)."""
+    return 0.0 - round(_home_lowest(robot), 4)  # 0.0 - x: never -0.0
+
+
+@functools.lru_cache(maxsize=32)
+def _home_lowest(robot: Robot) -> float:
+    return float(lowest_point(robot, robot.home[None])[0])
+
+
+def lowest_point(robot: Robot, q: np.ndarray, placement: Placement | None = None) -> np.ndarray:
+    """(T,) the lowest world z of the robot's geometry (every geom, visual and collision) at each
+    configuration of ``q`` (T, n), the base at ``placement`` (the base frame if None), m.
+
+    Exact for primitives and meshes (a mesh's lowest point is a vertex of its convex hull).
+    """
+    model = robot.model
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    rotation = np.eye(3) if placement is None else placement.rotation
+    lift = 0.0 if placement is None else float(placement.translation[2])
+    up = rotation[2]  # the world's z axis in the base frame
+    data = mujoco.MjData(model)
+    pos = np.empty((len(q), model.ngeom, 3))
+    mat = np.empty((len(q), model.ngeom, 3, 3))
+    for k, qk in enumerate(q):
+        data.qpos[:] = qk
+        mujoco.mj_kinematics(model, data)
+        pos[k], mat[k] = data.geom_xpos, data.geom_xmat.reshape(-1, 3, 3)
+    axis_z = np.einsum("i,tgij->tgj", up, mat)  # (T, g, 3): world z of each geom axis
+    centre_z = pos @ up + lift
+    size = model.geom_size
+    low = np.full((len(q), model.ngeom), np.inf)
+    geom = mujoco.mjtGeom
+    for g in range(model.ngeom):
+        a, s, kind = axis_z[:, g], size[g], model.geom_type[g]
+        if kind == geom.mjGEOM_MESH:
+            depth = (a @ _hull_vertices(robot, int(model.geom_dataid[g])).T).min(axis=1)
+        elif kind == geom.mjGEOM_SPHERE:
+            depth = np.full(len(q), -s[0])
+        elif kind == geom.mjGEOM_CAPSULE:
+            depth = -np.abs(a[:, 2]) * s[1] - s[0]
+        elif kind == geom.mjGEOM_CYLINDER:
+            depth = -np.abs(a[:, 2]) * s[1] - s[0] * np.sqrt(np.clip(1.0 - a[:, 2] ** 2, 0.0, 1.0))
+        elif kind == geom.mjGEOM_BOX:
+            depth = -np.abs(a) @ s
+        elif kind == geom.mjGEOM_ELLIPSOID:
+            depth = -np.sqrt(((a * s) ** 2).sum(axis=1))
+        else:  # planes, height fields: no bottom of their own
+            continue
+        low[:, g] = centre_z[:, g] + depth
+    return low.min(axis=1)
+
+
+@functools.lru_cache(maxsize=256)
+def _hull_vertices(robot: Robot, mesh: int) -> np.ndarray:
+    """(k, 3) the vertices of a mesh's convex hull, in the mesh (geom) frame."""
+    m = robot.model
+    start = int(m.mesh_vertadr[mesh])
+    vert = np.array(m.mesh_vert[start : start + int(m.mesh_vertnum[mesh])], dtype=float)
+    try:
+        return vert[ConvexHull(vert).vertices]
+    except (QhullError, ValueError):  # flat or tiny: every vertex
+        return vert
+
+
+def placement_notes(robot: Robot, placement: Placement) -> list[str]:
+    """A note if the base is not at the robot's floor height (``X,Y,YAW,Z``): it does not stand on
+    the floor."""
+    height, floor = float(placement.translation[2]), floor_height(robot)
+    if abs(height - floor) <= FLOOR_TOLERANCE:
+        return []
+    where = "above" if height > floor else "below"
+    return [
+        f"placement {placement.method}: {robot.title} does not stand on its floor: its base is at "
+        f"z = {height:.3f} m, {abs(height - floor):.3f} m {where} the height it stands at ({floor:.3f} m)"
+    ]
 
 
 @dataclass(frozen=True)
@@ -137,14 +229,14 @@ def reach_scores(
     Returns:
         (n_yaw, n_xy) scores; (n_xy, 3) base offsets in the search frame, m; (n_yaw,) yaws, rad;
         and the search frame: (3, 3) rotation (the shoulder placement's) and (3,) origin (mean hand
-        position, at the shoulder placement's base height).
+        position, at the robot's floor height).
     """
     reach = reach or reachability_map(robot)
     start = shoulder_placement(robot, human)
     r0 = start.rotation
     frames = np.unique(np.linspace(0, len(human.tcp_pos) - 1, search.n_targets).astype(int))
     pos, rot = human.tcp_pos[frames], human.tcp_rot[frames]  # (N, 2, 3), (N, 2, 3, 3)
-    c0 = np.array([*pos.reshape(-1, 3).mean(axis=0)[:2], start.translation[2]])
+    c0 = np.array([*pos.reshape(-1, 3).mean(axis=0)[:2], floor_height(robot)])
     g = np.arange(-search.radius, search.radius + 1e-9, search.step)
     gx, gy = np.meshgrid(g, g, indexing="ij")
     offsets = np.stack([gx.ravel(), gy.ravel(), np.zeros(gx.size)], axis=-1)
@@ -178,8 +270,8 @@ def mapped_placement(robot: Robot, motion: HumanMotion, human: HumanKinematics |
 
     The fit is trimmed: hand positions farther from the fit than twice the median distance (and
     5 cm) are dropped and the fit repeated, so a stretch of unreachable targets (a subject carried
-    away) does not drag the robot off the rest. The base height puts the shoulders at the human's,
-    as the other rules do.
+    away) does not drag the robot off the rest. The robot stands on the floor, as with the other
+    rules.
     """
     human = human or forward_kinematics(motion)
     mapped, _ = tcp_poses(robot, joint_mapping(robot, motion))
@@ -194,15 +286,15 @@ def mapped_placement(robot: Robot, motion: HumanMotion, human: HumanKinematics |
         xy = b_mean - rotation[:2, :2] @ a_mean
         miss = np.linalg.norm(a @ rotation[:2, :2].T + xy - b, axis=-1)
         keep = miss <= max(2.0 * float(np.median(miss)), 0.05)
-    height = shoulder_placement(robot, human).translation[2]
-    return Placement(rotation, np.array([xy[0], xy[1], height]), "mapped")
+    return Placement(rotation, np.array([xy[0], xy[1], floor_height(robot)]), "mapped")
 
 
 def placement_from_spec(
     spec: str, robot: Robot, motion: HumanMotion, human: HumanKinematics | None = None
 ) -> Placement:
-    """The placement named by ``spec``: ``reach``, ``mapped``, ``shoulders`` or ``X,Y,YAW`` (world
-    metres and degrees about z; the base height puts the shoulders at the human's).
+    """The placement named by ``spec``: ``reach``, ``mapped``, ``shoulders``, ``X,Y,YAW`` (world
+    metres and degrees about z; standing on the floor) or ``X,Y,YAW,Z`` (and the base height, m:
+    off the floor unless Z is :func:`floor_height`; :func:`placement_notes` warns).
 
     Raises:
         SettingsError: anything else.
@@ -216,13 +308,16 @@ def placement_from_spec(
     if spec == "shoulders":
         return shoulder_placement(robot, human)
     try:
-        x, y, yaw = (float(v) for v in spec.split(","))
+        values = [float(v) for v in spec.split(",")]
+        if len(values) not in (3, 4):
+            raise ValueError
     except ValueError:
         raise SettingsError(
-            f"placement {spec!r}: expected one of {', '.join(PLACEMENTS)}, X,Y,YAW (m, m, deg) or, in "
-            "hlik run, optimize (hlik.placement_search in Python)"
+            f"placement {spec!r}: expected one of {', '.join(PLACEMENTS)}, X,Y,YAW (m, m, deg), "
+            "X,Y,YAW,Z (and the base height, m) or, in hlik run, optimize (hlik.placement_search in Python)"
         ) from None
-    height = shoulder_placement(robot, human).translation[2]
+    x, y, yaw = values[:3]
+    height = values[3] if len(values) == 4 else floor_height(robot)
     return Placement(yaw_rotation(np.radians(yaw)), np.array([x, y, height]), spec)
 
 

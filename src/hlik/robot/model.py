@@ -53,6 +53,12 @@ class Robot:
         mapping: The MMM -> robot joint mapping of the arm joints.
         velocity_limit: (n,) largest joint speed in rad/s, aligned with ``joint_names``.
         velocity_source: Where ``velocity_limit`` comes from (datasheet, model file, assumption).
+        acceleration_limit: (n,) largest joint acceleration in rad/s^2 (``[acceleration_limits]``);
+            ``inf`` where the description gives none.
+        acceleration_source: Where ``acceleration_limit`` comes from; ``""`` if not given.
+        effort_limit: (n,) largest joint torque in N m (``[effort_limits]`` or the URDF's
+            ``<limit effort>``); ``inf`` where neither gives one.
+        effort_source: Where ``effort_limit`` comes from; ``""`` if not given.
         manipulability_site: Site suffix of the manipulability frame (``{side}_<suffix>``).
         manipulability_joints: Non-arm joints that count in each arm's manipulability chain,
             proximal to the arm (ARMAR-III's hip, as in the paper's IK).
@@ -77,11 +83,20 @@ class Robot:
     mapping: JointMapping
     velocity_limit: np.ndarray
     velocity_source: str = ""
+    acceleration_limit: np.ndarray = None  # type: ignore[assignment]  # None: inf, set below
+    acceleration_source: str = ""
+    effort_limit: np.ndarray = None  # type: ignore[assignment]
+    effort_source: str = ""
     manipulability_site: str = "tcp"
     manipulability_joints: tuple[str, ...] = ()
     placement: str = "reach"
     description: Path | None = None
     subject_scale: float | str = 1.0
+
+    def __post_init__(self):
+        for key in ("acceleration_limit", "effort_limit"):
+            if getattr(self, key) is None:
+                object.__setattr__(self, key, np.full(len(self.joint_names), np.inf))
 
     @property
     def reference(self) -> str:
@@ -249,7 +264,13 @@ def _build(path: Path, desc: dict, need_mapping: bool = True) -> Robot:
     lower = np.where(limited, model.jnt_range[:, 0], -np.inf)
     upper = np.where(limited, model.jnt_range[:, 1], np.inf)
     home = _home(path, home_angles, names, compiled.welded, lower, upper)
-    velocity, velocity_source = _velocity_limits(path, desc, names, compiled.velocity)
+    velocity, velocity_source = _joint_limits(
+        path, desc, names, "velocity_limits", "rad/s", compiled.velocity, required=True
+    )
+    acceleration, acceleration_source = _joint_limits(
+        path, desc, names, "acceleration_limits", "rad/s^2", {}, required=False
+    )
+    effort, effort_source = _joint_limits(path, desc, names, "effort_limits", "N m", compiled.effort, False)
     mapping = _mapping(path, desc, names)
     missing = [j for s in SIDES for j in arms[s] if j not in {m.joint for m in mapping.joints}]
     if missing and need_mapping:
@@ -271,6 +292,10 @@ def _build(path: Path, desc: dict, need_mapping: bool = True) -> Robot:
         mapping=mapping,
         velocity_limit=velocity,
         velocity_source=velocity_source,
+        acceleration_limit=acceleration,
+        acceleration_source=acceleration_source,
+        effort_limit=effort,
+        effort_source=effort_source,
         manipulability_site=manip_site,
         manipulability_joints=manip_joints,
         placement=_placement_rule(path, desc),
@@ -391,31 +416,41 @@ def _placement_rule(path: Path, desc: dict) -> str:
     return rule
 
 
-def _velocity_limits(
-    path: Path, desc: dict, names: tuple[str, ...], from_model: Mapping[str, float]
+def _joint_limits(
+    path: Path,
+    desc: dict,
+    names: tuple[str, ...],
+    key: str,
+    unit: str,
+    from_model: Mapping[str, float],
+    required: bool,
 ) -> tuple[np.ndarray, str]:
-    """(n,) joint speed limits in rad/s from ``[velocity_limits]`` (every joint, positive, finite);
-    a joint the table leaves out takes the URDF's ``<limit velocity>`` if the model gives one."""
-    table = dict(_table(path, desc, "velocity_limits", required=not from_model))
+    """(n,) per-joint limits in ``unit`` from the table ``[key]`` (every joint, positive, finite)
+    and its ``source``; a joint the table leaves out takes the URDF's ``<limit>`` value if the model
+    gives one. Absent and not ``required`` (nor in the model): infinite, source ``""``."""
+    if key not in desc and not from_model and not required:
+        return np.full(len(names), np.inf), ""
+    table = dict(_table(path, desc, key, required=not from_model))
     source = str(table.pop("source", ""))
     inherited = [n for n in names if n not in table and n in from_model]
     table.update({n: from_model[n] for n in inherited})
     if inherited:
-        source = "; ".join(filter(None, [source, f"URDF <limit velocity> of {len(inherited)} joints"]))
+        attribute = {"velocity_limits": "velocity", "effort_limits": "effort"}.get(key, key)
+        source = "; ".join(filter(None, [source, f"URDF <limit {attribute}> of {len(inherited)} joints"]))
     missing = [n for n in names if n not in table]
     if missing:
-        raise RobotError(f"{path}: [velocity_limits] has no value for: {', '.join(missing)}")
+        raise RobotError(f"{path}: [{key}] has no value for: {', '.join(missing)}")
     unknown = [n for n in table if n not in names]
     if unknown:
-        raise RobotError(f"{path}: [velocity_limits] names joints not in the model: {', '.join(unknown)}")
+        raise RobotError(f"{path}: [{key}] names joints not in the model: {', '.join(unknown)}")
     bad_type = [n for n in names if isinstance(table[n], bool) or not isinstance(table[n], int | float)]
     if bad_type:
         n = bad_type[0]
-        raise RobotError(f"{path}: [velocity_limits] values must be numbers in rad/s, {n} is {table[n]!r}")
+        raise RobotError(f"{path}: [{key}] values must be numbers in {unit}, {n} is {table[n]!r}")
     limits = np.array([float(table[n]) for n in names])
     if not np.all(np.isfinite(limits) & (limits > 0)):
         bad = [n for n, v in zip(names, limits) if not (np.isfinite(v) and v > 0)]
-        raise RobotError(f"{path}: [velocity_limits] must be positive and finite: {', '.join(bad)}")
+        raise RobotError(f"{path}: [{key}] must be positive and finite: {', '.join(bad)}")
     return limits, source
 
 

@@ -12,6 +12,9 @@ changed; what hlik needs is edited into the compiled copy:
 - geoms that collide go to group :data:`COLLISION_GROUP`, the others to :data:`VISUAL_GROUP`; body
   pairs that touch at the home pose (links that overlap by construction) are excluded from
   collision, with the pairs of ``[collision] exclude``.
+- a body with visual geometry but no collision geometry (the G1's rubber hands, pelvis and waist
+  links have visual meshes only) gets a fitted collision primitive per visual geom
+  (:func:`fit_collision_shapes`), so that it is seen by the self-collision checks.
 """
 
 from __future__ import annotations
@@ -22,7 +25,7 @@ import sys
 import sysconfig
 import xml.etree.ElementTree as ET
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import mujoco
@@ -44,12 +47,14 @@ class ModelFile:
         model: The compiled model; ``qpos`` holds the kept joints only.
         welded: Joint name -> angle (rad) of the joints welded into their bodies.
         velocity: Joint name -> speed limit (rad/s) a URDF gives (``<limit velocity>``); empty for MJCF.
+        effort: Joint name -> torque limit (N m) a URDF gives (``<limit effort>``); empty for MJCF.
     """
 
     path: Path
     model: mujoco.MjModel
     welded: Mapping[str, float]
     velocity: Mapping[str, float]
+    effort: Mapping[str, float] = field(default_factory=dict)
 
 
 def resolve_package(uri: str, toml: Path, package_dirs: Mapping[str, str]) -> Path:
@@ -113,13 +118,13 @@ def compile_model(
     if not path.is_file():
         raise RobotError(f"{toml}: model {source!r} not found ({path})")
     if path.suffix.lower() == ".urdf":
-        spec, velocity = _urdf_spec(path, toml, package_dirs)
+        spec, limits = _urdf_spec(path, toml, package_dirs)
     else:
         try:
             spec = mujoco.MjSpec.from_file(str(path))
         except ValueError as e:
             raise RobotError(f"{path}: cannot load MJCF: {' '.join(str(e).split())}") from None
-        velocity = {}
+        limits = {"velocity": {}, "effort": {}}
     model = _compile(spec, path)
     names = {model.joint(i).name for i in range(model.njnt)}
     unknown = [j for j in keep if j not in names]
@@ -128,6 +133,7 @@ def compile_model(
     _place_base(spec, model, toml, base)
     welded = _weld(spec, model, toml, set(keep), home)
     _add_sites(spec, toml, sites)
+    fit_collision_shapes(spec, model)
     for geom in spec.geoms:
         geom.group = COLLISION_GROUP if geom.contype or geom.conaffinity else VISUAL_GROUP
     for pair in exclude:
@@ -143,7 +149,7 @@ def compile_model(
         spec.add_exclude(bodyname1=b1, bodyname2=b2)
     if touching:
         model = _compile(spec, path)
-    return ModelFile(path, model, welded, velocity)
+    return ModelFile(path, model, welded, limits["velocity"], limits["effort"])
 
 
 def _compile(spec: mujoco.MjSpec, path: Path) -> mujoco.MjModel:
@@ -155,8 +161,9 @@ def _compile(spec: mujoco.MjSpec, path: Path) -> mujoco.MjModel:
 
 def _urdf_spec(
     path: Path, toml: Path, package_dirs: Mapping[str, str]
-) -> tuple[mujoco.MjSpec, dict[str, float]]:
-    """An MjSpec of a URDF, keeping its visual geometry, with its mesh paths resolved."""
+) -> tuple[mujoco.MjSpec, dict[str, dict[str, float]]]:
+    """An MjSpec of a URDF, keeping its visual geometry, with its mesh paths resolved, and the
+    joints' ``<limit velocity>`` (rad/s) and ``<limit effort>`` (N m) by attribute and joint name."""
     try:
         root = ET.parse(path).getroot()
     except (ET.ParseError, OSError) as e:
@@ -169,11 +176,12 @@ def _urdf_spec(
     if compiler is None:
         compiler = ET.SubElement(mujoco_el, "compiler")
     compiler.attrib.update(discardvisual="false", strippath="false", fusestatic="false")
-    velocity = {}
+    limits: dict[str, dict[str, float]] = {"velocity": {}, "effort": {}}
     for joint in root.iter("joint"):
         limit = joint.find("limit")
-        if limit is not None and "velocity" in limit.attrib:
-            velocity[joint.get("name", "")] = float(limit.get("velocity", "nan"))
+        for key, table in limits.items():
+            if limit is not None and key in limit.attrib:
+                table[joint.get("name", "")] = float(limit.get(key, "nan"))
     try:
         spec = mujoco.MjSpec.from_string(ET.tostring(root, encoding="unicode"))
     except ValueError as e:
@@ -186,7 +194,7 @@ def _urdf_spec(
         if not resolved.is_file():
             raise RobotError(f"{path}: mesh {file!r} not found ({resolved})")
         mesh.file = str(resolved)
-    return spec, velocity
+    return spec, limits
 
 
 def _vector(toml: Path, value: object, where: str, default: Sequence[float]) -> np.ndarray:
@@ -279,3 +287,79 @@ def _touching_at_home(model: mujoco.MjModel, home: Sequence[float]) -> list[tupl
         b1, b2 = sorted(model.body(model.geom_bodyid[g]).name for g in contact.geom)
         pairs.add((b1, b2))
     return sorted(pairs)
+
+
+FITTED = "col_fitted_"  # name prefix of the collision primitives fitted to visual-only bodies
+_UNBOUNDED = (mujoco.mjtGeom.mjGEOM_PLANE, mujoco.mjtGeom.mjGEOM_HFIELD)
+
+
+def fit_collision_shapes(spec: mujoco.MjSpec, model: mujoco.MjModel) -> list[str]:
+    """Add a collision primitive for each visual geom of every body that has visual geometry but no
+    collision geometry (``model`` is ``spec`` compiled). A primitive visual geom is copied; a mesh
+    gets the smaller (by volume) of a box and a capsule covering all its vertices, both in the
+    mesh's frame (MuJoCo's, the principal axes of its inertia): the box is the vertices' bounding
+    box there, the capsule runs along the box's longest axis, its radius the vertices' largest
+    distance from that axis and its ends just far enough to cover the rest. Mass-less (density
+    0), with the contype/conaffinity most of the model's collision geoms have (1/1 if none).
+
+    Returns:
+        The names of the bodies that got one.
+    """
+    colliding = (model.geom_contype | model.geom_conaffinity) > 0
+    kinds = list(zip(model.geom_contype[colliding].tolist(), model.geom_conaffinity[colliding].tolist()))
+    contype, conaffinity = max(set(kinds), key=kinds.count) if kinds else (1, 1)
+    # the spec's bodies in the compiled order (their ids are gone once the spec is edited)
+    listed = list(spec.bodies)
+    bodies = dict(enumerate(listed)) if len(listed) == model.nbody else {}
+    bodies.update({i: spec.body(model.body(i).name) for i in range(1, model.nbody) if model.body(i).name})
+    taken = {geom.name for geom in spec.geoms}
+    fitted = []
+    for b in range(1, model.nbody):
+        own = np.flatnonzero(model.geom_bodyid == b)
+        geoms = [int(g) for g in own if model.geom_type[g] not in _UNBOUNDED]
+        if not geoms or colliding[own].any() or b not in bodies:
+            continue
+        stem = FITTED + (model.body(b).name or f"body{b}")
+        for k, g in enumerate(geoms):
+            kind, size, pos, quat = _fitted_primitive(model, g)
+            name = stem if len(geoms) == 1 else f"{stem}_{k}"
+            while name in taken:
+                name += "_"
+            taken.add(name)
+            geom = bodies[b].add_geom(name=name, type=kind, size=size, pos=pos, quat=quat, density=0.0)
+            geom.contype, geom.conaffinity, geom.group = contype, conaffinity, COLLISION_GROUP
+        fitted.append(model.body(b).name)
+    return fitted
+
+
+def _fitted_primitive(model: mujoco.MjModel, g: int) -> tuple[int, np.ndarray, np.ndarray, np.ndarray]:
+    """Type, size, position and quaternion (wxyz) in the body frame of the primitive covering geom g."""
+    pos, quat = np.array(model.geom_pos[g]), np.array(model.geom_quat[g])
+    if model.geom_type[g] != mujoco.mjtGeom.mjGEOM_MESH:
+        return mujoco.mjtGeom(int(model.geom_type[g])), np.array(model.geom_size[g]), pos, quat
+    mesh = int(model.geom_dataid[g])
+    start = int(model.mesh_vertadr[mesh])
+    vert = np.array(model.mesh_vert[start : start + int(model.mesh_vertnum[mesh])], dtype=float)
+    lo, hi = vert.min(axis=0), vert.max(axis=0)
+    centre, half = (lo + hi) / 2, np.maximum((hi - lo) / 2, 1e-4)
+    box_volume = 8.0 * float(np.prod(half))
+    # capsule along the longest axis of the box, through the box's centre
+    axis = int(np.argmax(half))
+    others = [i for i in range(3) if i != axis]
+    radial = np.linalg.norm(vert[:, others] - centre[others], axis=1)
+    radius = max(float(radial.max()), 1e-4)
+    reach = np.sqrt(np.maximum(radius**2 - radial**2, 0.0))
+    t = vert[:, axis]
+    low_end, high_end = float(np.min(t + reach)), float(np.max(t - reach))
+    half_length = max((high_end - low_end) / 2, 0.0)
+    capsule_volume = np.pi * radius**2 * 2 * half_length + 4 / 3 * np.pi * radius**3
+    rot = Rotation.from_quat(np.roll(quat, -1))
+    if box_volume <= capsule_volume:
+        return mujoco.mjtGeom.mjGEOM_BOX, half, pos + rot.apply(centre), quat
+    middle = centre.copy()
+    middle[axis] = (low_end + high_end) / 2
+    # the capsule's z along the chosen axis: a cyclic permutation of the mesh frame's axes
+    columns = np.eye(3)[:, [(axis + 1) % 3, (axis + 2) % 3, axis]]
+    turn = rot * Rotation.from_matrix(columns)
+    size = np.array([radius, max(half_length, 1e-6), 0.0])
+    return mujoco.mjtGeom.mjGEOM_CAPSULE, size, pos + rot.apply(middle), np.roll(turn.as_quat(), 1)

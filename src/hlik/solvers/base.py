@@ -114,6 +114,8 @@ def check_settings(
             (:mod:`hlik.solvers.stack_file` turns it into ``"<file>: [<solver>] <field> ..."``).
     """
     owner = type(settings).__name__
+    if hasattr(settings, "stop_margin"):  # every solver's LimitSettings
+        at_least_zero, fractions = (*at_least_zero, "stop_margin"), (*fractions, "torque_fraction")
 
     def fail(key: str, rule: str) -> None:
         value = getattr(settings, key)

@@ -3,9 +3,10 @@
 Every frame is solved from the previous frame's solution (the first from the clipped mapped human
 pose, as JM gives it), with the frame's targets and human reference in a one-row
 :class:`hlik.criteria.base.Sample`, inside the frame's joint box: the joint limits intersected with
-what each joint's speed limit allows since the previous frame (``|q_t - q_t-1| <= v_max dt``), so no
-frame jumps; a frame whose target lies farther lags behind it. The first frame, where the robot
-starts from the mapped human pose, is bounded by the joint limits only.
+what the speed and acceleration limits allow since the previous frames, braking before the stops,
+and the torque rows (:mod:`hlik.solvers.limits`), so no frame jumps; a frame whose target lies
+farther lags behind it. The first frame, where the robot starts from the mapped human pose, is
+bounded by the joint limits only.
 """
 
 from __future__ import annotations
@@ -24,6 +25,9 @@ from hlik.problem.targets import HandTargets
 from hlik.robot.collision import CollisionPairs, DistanceBounds, velocity_damper
 from hlik.robot.model import Robot
 from hlik.solvers.base import Diagnostics, SolverResult
+from hlik.solvers.limits import JointBox as JointBox  # re-exported: the solvers' frame box
+from hlik.solvers.limits import LimitSettings as LimitSettings
+from hlik.solvers.limits import MotionLimits
 
 
 @dataclass(frozen=True)
@@ -36,29 +40,12 @@ class FrameResult:
     failed: bool = False
 
 
-@dataclass(frozen=True)
-class JointBox:
-    """Bounds (n,) each on a frame's configuration, rad (infinite for unlimited joints)."""
-
-    lower: np.ndarray
-    upper: np.ndarray
-
-    def clip(self, q: np.ndarray) -> np.ndarray:
-        return np.minimum(np.maximum(q, self.lower), self.upper)  # half np.clip's time on (n,)
-
-    def step_bounds(self, q: np.ndarray, max_step: float) -> tuple[np.ndarray, np.ndarray]:
-        """Bounds (n,) each on a step from ``q`` into the box, at most ``max_step`` per joint; a
-        joint outside the box may only move back (0 is always allowed)."""
-        lower = np.minimum(np.maximum(self.lower - q, -max_step), 0.0)
-        upper = np.maximum(np.minimum(self.upper - q, max_step), 0.0)
-        return lower, upper
-
-
 FrameSolver = Callable[[int, Sample, np.ndarray, JointBox], FrameResult]
 
 
 def joint_box(robot: Robot, q_previous: np.ndarray | None, dt: float) -> JointBox:
-    """The joint limits, intersected with the speed limits' reach from ``q_previous`` if given."""
+    """The joint limits, intersected with the speed limits' reach from ``q_previous`` if given (no
+    acceleration, margin or torque: :meth:`MotionLimits.box` adds them)."""
     if q_previous is None:
         return JointBox(robot.lower, robot.upper)
     reach = robot.velocity_limit * dt
@@ -71,10 +58,17 @@ def sample_at(ref: HumanReference, targets: HandTargets, k: int, history: np.nda
 
 
 def track(
-    problem: Problem, solve_frame: FrameSolver, progress: Callable[[int], None] | None = None
+    problem: Problem,
+    solve_frame: FrameSolver,
+    progress: Callable[[int], None] | None = None,
+    limits: MotionLimits | None = None,
 ) -> SolverResult:
-    """Solve frame by frame with ``solve_frame(k, sample, q_previous, box) -> FrameResult``."""
+    """Solve frame by frame with ``solve_frame(k, sample, q_start, box) -> FrameResult``, each
+    frame inside the box of ``limits`` (default: the robot's, :class:`LimitSettings`' defaults),
+    from the previous solution moved on at its speed (the first frame: the clipped mapped pose)."""
     robot, n_frames = problem.robot, problem.n_frames
+    limits = limits or MotionLimits.of(robot)
+    data = mujoco.MjData(robot.model)
     q = np.clip(problem.reference.q_map[0], robot.lower, robot.upper)
     history = np.tile(q, (3, 1))
     out = np.empty((n_frames, robot.dof))
@@ -84,7 +78,12 @@ def track(
     for k in range(n_frames):
         start = time.perf_counter()
         sample = sample_at(problem.reference, problem.targets, k, history, problem.dt)
-        result = solve_frame(k, sample, q, joint_box(robot, q if k else None, problem.dt))
+        box = limits.box(q if k else None, history[1], problem.dt, data)
+        # from the constant-speed prediction: the previous configuration lies outside the
+        # acceleration box whenever a joint moves faster than a_max dt, and clipped into it, it
+        # starts the frame on the box's corner (JV's steps then chattered between corners)
+        q_start = box.clip(2.0 * q - history[1]) if k else q
+        result = solve_frame(k, sample, q_start, box)
         seconds[k] = time.perf_counter() - start
         q = result.q
         iterations[k], converged[k], failed[k] = result.iterations, result.converged, result.failed
@@ -103,6 +102,7 @@ def iterate(
     max_iter: int,
     tol: float,
     damp_reversals: bool = False,
+    outer: bool = False,
 ) -> FrameResult:
     """Repeat ``q <- clip(q + step(q))`` into ``box`` until no joint moves more than ``tol``
     (converged) or ``max_iter`` steps (the paper's stopping rule for JV).
@@ -111,6 +111,9 @@ def iterate(
     scale of this and every later step. A Gauss-Newton step can flip a joint between the ends of
     its speed box where the linearisation is poor (ARMAR-III's elbow near a stretched arm: the same
     +-0.01 rad step every iteration until the cap); halving settles it between them.
+
+    ``outer``: clip into ``box.outer`` instead, for a ``step`` that keeps ``box`` itself but may
+    step into its relaxed box to keep the robot out of itself (the QP).
     """
     steps, converged, scale = 0, False, 1.0
     q = box.clip(q)
@@ -122,7 +125,7 @@ def iterate(
             if dot < -0.5 * np.linalg.norm(delta) * np.linalg.norm(previous):
                 scale *= 0.5
         previous = delta
-        new = box.clip(q + scale * delta)
+        new = (box.outer if outer else box).clip(q + scale * delta)
         moved, q, steps = np.max(np.abs(new - q)), new, steps + 1
         if moved < tol:
             converged = True

@@ -41,12 +41,13 @@ from hlik.robot.model import Robot
 from hlik.robot.state import RobotState, robot_state
 from hlik.solvers.base import ConfiguredSolver, SolverResult, check_settings
 from hlik.solvers.frames import FrameResult, JointBox, collision_rows, iterate, track
+from hlik.solvers.limits import LimitSettings, MotionLimits
 from hlik.solvers.qp import solve_qp
 
 
 @dataclass(frozen=True)
-class JVSettings:
-    """The controller's gains and the stopping rule.
+class JVSettings(LimitSettings):
+    """The controller's gains, the stopping rule and the limits (:class:`LimitSettings`).
 
     Attributes:
         criteria: Human-likeness criteria of the null-space task (paper names; the paper leaves MJE
@@ -266,8 +267,10 @@ def _avoiding_step(
     Rows that cannot all be met within the box are relaxed to "come no closer"; if even that fails,
     the task step is zero.
     """
-    lower, upper = box.step_bounds(q, settings.max_step)
-    for bounds in (rhs, np.maximum(rhs, 0.0)):
+    tries = [(box, rhs), (box.outer, rhs), (box, np.maximum(rhs, 0.0)), (box.outer, np.maximum(rhs, 0.0))]
+    # box.outer: no room within the acceleration limits to keep the body apart, the rows win
+    for within, bounds in tries:
+        lower, upper = within.step_bounds(q, settings.max_step)
         task = avoiding_least_norm(jac, xdot, weights, damping, rows, bounds, lower, upper)
         if task is not None:
             active = rows @ task >= bounds - 1e-7
@@ -382,8 +385,14 @@ def step(
 
     null, null_bound = bounded(null_step(jac, task))
     dq = bound(task + null, settings.max_step)
-    if pairs is not None and len(pairs) and np.all(np.isfinite(dq)):
-        rows, rhs = collision_rows(robot, data, pairs, bounds, settings)  # q's kinematics in data
+    # clipped into the frame's box here: iterate clips into the outer box only, which the
+    # collision step below may need
+    dq = box.clip(q + dq) - q
+    rows, rhs = box.step_rows(q)  # the torque limits
+    if pairs is not None and len(pairs):
+        a_col, b_col = collision_rows(robot, data, pairs, bounds, settings)  # q's kinematics in data
+        rows, rhs = np.vstack([rows, a_col]), np.concatenate([rhs, b_col])
+    if len(rhs) and np.all(np.isfinite(dq)):
         if np.any(rows @ dq > rhs + 1e-9):
             task, null = _avoiding_step(jac, xdot, weights, damping, rows, rhs, q, box, settings, null_step)
             null, null_bound = bounded(null)
@@ -440,9 +449,9 @@ def solve(
             taken += 1
             return dq
 
-        return iterate(jv_step, q, box, settings.max_iter * (10 if k == 0 else 1), settings.tol)
+        return iterate(jv_step, q, box, settings.max_iter * (10 if k == 0 else 1), settings.tol, outer=True)
 
-    return track(problem, solve_frame, progress)
+    return track(problem, solve_frame, progress, MotionLimits.of(robot, settings))
 
 
 def jv_solver(

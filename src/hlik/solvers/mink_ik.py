@@ -18,7 +18,8 @@ from hlik.problem.problem import Problem
 from hlik.robot.model import SIDES
 from hlik.solvers.base import SolverResult
 from hlik.solvers.frames import FrameResult, JointBox, track
-from hlik.solvers.mink_tasks import CriterionTask
+from hlik.solvers.limits import LimitSettings, MotionLimits
+from hlik.solvers.mink_tasks import CriterionTask, FrameBoxLimit
 
 
 class MinkSolver:
@@ -26,10 +27,13 @@ class MinkSolver:
 
     Args:
         tasks: mink tasks; ``FrameTask`` on ``<side>_tcp`` sites follow the hands.
-        limits: mink limits (e.g. ``ConfigurationLimit``, :class:`hlik.solvers.mink_tasks.HumanJointLimit`).
+        limits: mink limits (e.g. ``ConfigurationLimit``, :class:`hlik.solvers.mink_tasks.HumanJointLimit`);
+            each frame's joint box (:mod:`hlik.solvers.limits`, what every hlik solver keeps) is
+            added as a :class:`hlik.solvers.mink_tasks.FrameBoxLimit`.
         iterations: ``solve_ik`` steps per frame (the first frame gets ten times more).
         damping: Levenberg-Marquardt damping of ``solve_ik``.
         solver: qpsolvers backend.
+        motion_limits: Stop margin, acceleration and torque limits of the frame box.
     """
 
     name = "mink"
@@ -41,17 +45,22 @@ class MinkSolver:
         iterations: int = 5,
         damping: float = 1e-3,
         solver: str = "daqp",
+        motion_limits: LimitSettings | None = None,
     ):
         self.tasks, self.limits = list(tasks), list(limits)
+        self.motion_limits = motion_limits or LimitSettings()
         self.iterations, self.damping, self.solver = iterations, damping, solver
 
     def __call__(self, problem: Problem) -> SolverResult:
         """Joint angles (T, n); each frame runs a fixed number of ``solve_ik`` steps."""
         config = mink.Configuration(problem.robot.model)
         hands = {f"{side}_tcp": i for i, side in enumerate(SIDES)}
+        frame_box = FrameBoxLimit(problem.robot.dof)
+        limits = [*self.limits, frame_box]
 
         def solve_frame(k: int, sample: Sample, q: np.ndarray, box: JointBox) -> FrameResult:
             config.update(q)
+            frame_box.set_box(box)
             for task in self.tasks:
                 if isinstance(task, mink.FrameTask) and task.frame_name in hands:
                     i = hands[task.frame_name]
@@ -62,9 +71,9 @@ class MinkSolver:
             steps = self.iterations * (10 if k == 0 else 1)
             for _ in range(steps):
                 v = mink.solve_ik(
-                    config, self.tasks, sample.dt, self.solver, self.damping, limits=self.limits
+                    config, self.tasks, sample.dt, self.solver, self.damping, limits=limits
                 )
                 config.integrate_inplace(v, sample.dt)
             return FrameResult(box.clip(config.q), steps)
 
-        return track(problem, solve_frame)
+        return track(problem, solve_frame, limits=MotionLimits.of(problem.robot, self.motion_limits))

@@ -2,7 +2,9 @@
 
 :class:`CriterionTask` adapts any :class:`hlik.criteria.base.Term` (the same residual and Jacobian the
 QP solver and the metrics use); the frame's context is set per frame with :meth:`CriterionTask.set_sample`.
-:class:`HumanJointLimit` keeps the mapped joints inside the human's range as hard inequalities.
+:class:`HumanJointLimit` keeps the mapped joints inside the human's range as hard inequalities;
+:class:`FrameBoxLimit` keeps a frame's joint box of :mod:`hlik.solvers.limits` (position stops with
+their margin, speed, acceleration, braking, torque), the same bounds every hlik solver keeps.
 """
 
 from __future__ import annotations
@@ -18,6 +20,7 @@ from hlik.criteria.joints import human_limits
 from hlik.criteria.learned import Learned
 from hlik.robot.model import Robot
 from hlik.robot.state import robot_state
+from hlik.solvers.frames import JointBox
 
 
 class CriterionTask(mink.Task):
@@ -77,3 +80,29 @@ class HumanJointLimit(Limit):
         select = np.zeros((len(self.idx), self.n))
         select[np.arange(len(self.idx)), self.idx] = 1.0
         return Constraint(G=np.vstack([select, -select]), h=np.concatenate([upper, lower]))
+
+
+class FrameBoxLimit(Limit):
+    """A frame's :class:`~hlik.solvers.frames.JointBox` as a ``mink.Limit``: ``lower <= q + dq <=
+    upper`` on its finite sides, and its rows ``rows @ (q + dq) <= bound``, for the configuration
+    mink steps from. :class:`hlik.solvers.mink_ik.MinkSolver` sets the box each frame
+    (:meth:`set_box`); a joint outside the box may only move back."""
+
+    def __init__(self, n: int):
+        self.n = n
+        self.box: JointBox | None = None
+
+    def set_box(self, box: JointBox) -> None:
+        self.box = box
+
+    def compute_qp_inequalities(self, configuration: mink.Configuration, dt: float) -> Constraint:
+        if self.box is None:
+            return Constraint()
+        q, eye = configuration.q, np.eye(self.n)
+        upper, lower = np.isfinite(self.box.upper), np.isfinite(self.box.lower)
+        rows, bound = self.box.step_rows(q)
+        g = np.vstack([eye[upper], -eye[lower], rows])
+        h = np.concatenate(
+            [np.maximum(self.box.upper - q, 0.0)[upper], np.maximum(q - self.box.lower, 0.0)[lower], bound]
+        )
+        return Constraint(G=g, h=h)

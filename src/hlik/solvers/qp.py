@@ -31,6 +31,7 @@ from hlik.robot.model import Robot
 from hlik.robot.state import robot_state
 from hlik.solvers.base import ConfiguredSolver, SolverResult, check_settings
 from hlik.solvers.frames import FrameResult, JointBox, collision_rows, iterate, track
+from hlik.solvers.limits import LimitSettings, MotionLimits
 
 # HJA_r's Table II gamma (2) doubled for the QP: beside SYN (gamma 6) it barely acted, and SYN +
 # HJA_r raised 2-Panda's m_hl by 0.042; at 4 by 0.051 (README, quality table), tracking within 2 cm.
@@ -38,8 +39,9 @@ GAMMA: Mapping[str, float] = MappingProxyType({"HJA_r": 4.0})
 
 
 @dataclass(frozen=True)
-class QPSettings:
-    """The task stack and the stopping rule.
+class QPSettings(LimitSettings):
+    """The task stack, the stopping rule and the limits (:class:`LimitSettings`: stop margin,
+    acceleration and torque limits).
 
     Attributes:
         criteria: Human-likeness criteria added to the stack (paper names).
@@ -202,14 +204,25 @@ def step(
         a = np.vstack(rows)
         hessian = hessian + a.T @ a
         gradient += a.T @ np.concatenate(errors)
-    lb, ub = (box or JointBox(robot.lower, robot.upper)).step_bounds(q, settings.max_step)
-    a_ineq, b_ineq = np.zeros((0, robot.dof)), np.zeros(0)
+    box = box or JointBox(robot.lower, robot.upper)
+    lb, ub = box.step_bounds(q, settings.max_step)
+    a_ineq, b_ineq = box.step_rows(q)  # the torque limits
     if pairs is not None and len(pairs):
-        a_ineq, b_ineq = collision_rows(robot, data, pairs, bounds, settings)  # q's kinematics in data
-    dq = solve_qp(hessian, gradient, lb, ub, settings.solver, a_ineq, b_ineq)
-    if dq is None and len(b_ineq):
-        # too close already and boxed in: at least come no closer
-        dq = solve_qp(hessian, gradient, lb, ub, settings.solver, a_ineq, np.maximum(b_ineq, 0.0))
+        a_col, b_col = collision_rows(robot, data, pairs, bounds, settings)  # q's kinematics in data
+        a_ineq, b_ineq = np.vstack([a_ineq, a_col]), np.concatenate([b_ineq, b_col])
+    tries = [(lb, ub, a_ineq, b_ineq)]
+    if pairs is not None and len(pairs) and box.relaxed is not None:
+        # no step within the acceleration (and torque) limits keeps the body apart: the collision
+        # rows win, inside the stops and speed limits
+        lb_r, ub_r = box.relaxed.step_bounds(q, settings.max_step)
+        tries += [(lb_r, ub_r, a_col, b_col), (lb_r, ub_r, a_col, np.maximum(b_col, 0.0))]
+    if len(b_ineq):  # too close already (or a torque over its limit) and boxed in: at least no worse
+        tries.append((lb, ub, a_ineq, np.maximum(b_ineq, 0.0)))
+    dq = None
+    for lower, upper, a, b in tries:
+        dq = solve_qp(hessian, gradient, lower, upper, settings.solver, a, b)
+        if dq is not None:
+            break
     if dq is None or not np.all(np.isfinite(dq)):
         return np.zeros(robot.dof)  # infeasible or failed step: stay (limits hold, nothing NaN)
     return dq
@@ -258,9 +271,10 @@ def solve(
             max_iter,
             settings.tol,
             damp_reversals=True,
+            outer=True,
         )
 
-    return track(problem, solve_frame, progress)
+    return track(problem, solve_frame, progress, MotionLimits.of(robot, settings))
 
 
 def qp_solver(

@@ -47,6 +47,7 @@ from hlik.robot.model import Robot
 from hlik.robot.state import robot_state
 from hlik.solvers.base import ConfiguredSolver, SolverResult, check_settings
 from hlik.solvers.frames import FrameResult, JointBox, track
+from hlik.solvers.limits import LimitSettings, MotionLimits
 
 # Sec. IV-A's gamma_p = 10 for the TCP position. The relative position (m, like fPOS) gets it too:
 # with 1 the groove's well (c = 0.1) is 10 cm wide and SLSQP leaves fPOS^off at 10-50 cm on the
@@ -116,8 +117,8 @@ BOX_TOLERANCE = 1e-8  # rad, NLopt's tolerance on the joint box rows of a Chart 
 
 
 @dataclass(frozen=True)
-class SLSQPSettings:
-    """The loss terms, their weights and NLopt's stopping rule.
+class SLSQPSettings(LimitSettings):
+    """The loss terms, their weights, NLopt's stopping rule and the limits (:class:`LimitSettings`).
 
     The defaults are the paper's end-effector pose retargeting (Sec. IV-A, RelaxedIK's weights):
     w_p = 10, w_o = 9, w_v = 7, w_a = 2, w_j = 1 and w_i = 10 per criterion, divided by the
@@ -547,15 +548,29 @@ class CollisionConstraint:
             grad[: len(order)] = -jac[order] if self.chart is None else -jac[order] @ self.chart.T
 
 
-class BoxConstraint:
-    """The joint box ``lower <= q(x) <= upper`` as NLopt's linear ``A x <= b`` in a chart's
-    variables (its finite rows only)."""
+def too_close(collision: CollisionConstraint, q: np.ndarray) -> bool:
+    """Whether a pair of collision geoms is closer than the margin at ``q`` (n,)."""
+    chart, collision.chart = collision.chart, None
+    result = np.empty(collision.settings.collision_pairs)
+    collision(result, q, np.empty(0))
+    collision.chart = chart
+    return bool(np.max(result) > 1e-4)
 
-    def __init__(self, chart: Chart, box: JointBox):
+
+class BoxConstraint:
+    """The joint box ``lower <= q(x) <= upper`` (its finite rows only) and the box's rows
+    ``rows @ q(x) <= bound`` (the torque limits) as NLopt's linear ``A x <= b`` in a chart's
+    variables; without a chart (x = q), the rows alone (NLopt takes the box as bounds)."""
+
+    def __init__(self, chart: Chart | None, box: JointBox):
+        rows, bound = box.step_rows(box.lower * 0.0 if chart is None else chart.origin)
+        if chart is None:
+            self.a, self.b = rows, bound
+            return
         finite_upper, finite_lower = np.isfinite(box.upper), np.isfinite(box.lower)
-        self.a = np.vstack([chart.T[finite_upper], -chart.T[finite_lower]])
+        self.a = np.vstack([chart.T[finite_upper], -chart.T[finite_lower], rows @ chart.T])
         self.b = np.concatenate(
-            [(box.upper - chart.origin)[finite_upper], (chart.origin - box.lower)[finite_lower]]
+            [(box.upper - chart.origin)[finite_upper], (chart.origin - box.lower)[finite_lower], bound]
         )
 
     def __len__(self) -> int:
@@ -596,12 +611,12 @@ def solve_frame(
     else:
         opt.set_lower_bounds(np.full(len(q0), -np.inf))
         opt.set_upper_bounds(np.full(len(q0), np.inf))
-        bounds = BoxConstraint(chart, box)
-        if len(bounds):
-            # a joint starting on its limit starts on the row: with no tolerance, rounding in A x
-            # made SLSQP's line search fail (ROUNDOFF_LIMITED) on 7 % of ARMAR-6's Cut frames
-            opt.add_inequality_mconstraint(bounds, np.full(len(bounds), BOX_TOLERANCE))
         x0 = np.zeros(len(q0))
+    bounds = BoxConstraint(chart, box)
+    if len(bounds):
+        # a joint starting on its limit starts on the row: with no tolerance, rounding in A x
+        # made SLSQP's line search fail (ROUNDOFF_LIMITED) on 7 % of ARMAR-6's Cut frames
+        opt.add_inequality_mconstraint(bounds, np.full(len(bounds), BOX_TOLERANCE))
     opt.set_min_objective(objective)
     opt.set_maxeval(max_eval)
     try:
@@ -643,11 +658,19 @@ def solve(
 
     def solve_frame_k(k: int, frame: Sample, q: np.ndarray, box: JointBox) -> FrameResult:
         obj, max_eval = (first, settings.first_eval) if k == 0 else (objective, settings.max_eval)
-        q, status[k] = solve_frame(opt, obj, frame, box.clip(q), max_eval, box, collision)
+        start = q
+        q, status[k] = solve_frame(opt, obj, frame, box.clip(start), max_eval, box, collision)
+        evaluations = obj.evaluations
+        if status[k] < 0 and collision is not None and box.relaxed is not None and too_close(collision, q):
+            # no room within the acceleration and torque limits to keep the body apart: the
+            # collision constraints win
+            box = box.relaxed
+            q, status[k] = solve_frame(opt, obj, frame, box.clip(start), max_eval, box, collision)
+            evaluations += obj.evaluations
         converged = status[k] > 0 and status[k] != nlopt.MAXEVAL_REACHED
-        return FrameResult(box.clip(q), obj.evaluations, converged, status[k] < 0)
+        return FrameResult(box.clip(q), evaluations, converged, status[k] < 0)
 
-    result = track(problem, solve_frame_k, progress)
+    result = track(problem, solve_frame_k, progress, MotionLimits.of(robot, settings))
     return replace(result, info=MappingProxyType({"status": status}))
 
 

@@ -1,0 +1,168 @@
+"""What a robot controller checks before it runs a trajectory: joint accelerations, jerk and
+torques against the robot's limits, joints parked on their stops, and the robot on its floor.
+
+Finite differences at the trajectory's frame period dt, the robot at rest before the first frame
+(as the solvers assume, :mod:`hlik.solvers.limits`): velocity ``v_t = (q_t+1 - q_t) / dt``,
+acceleration ``a_t = (q_t+1 - 2 q_t + q_t-1) / dt^2`` (t = 0 .. T-2), jerk the difference of a.
+Torques are ``mujoco.mj_inverse`` at ``q_t`` with the central-difference velocity and ``a_t``:
+inertia (with the models' armature), Coriolis and centrifugal terms and gravity; contacts and
+other constraints are off (the solvers keep the robot out of itself, and nothing else touches it),
+as are passive forces (the models have no springs or damping).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from hlik.criteria.angles import joint_difference
+from hlik.human.motion import frame_period
+from hlik.robot.floor import lowest_points
+from hlik.robot.model import Robot
+from hlik.trajectory import Trajectory
+
+AT_STOP = math.radians(0.5)  # a joint this close to a stop "sits on it"
+_D = mujoco.mjtDisableBit
+_OFF = _D.mjDSBL_CONSTRAINT | _D.mjDSBL_SPRING | _D.mjDSBL_DAMPER  # contacts, limits; passive forces
+FLOOR_TOLERANCE = 0.01  # m: a lowest point farther from the floor is "in" or "above" it
+
+
+@dataclass(frozen=True, eq=False)
+class ControllerChecks:
+    """Per-frame checks of a trajectory; arrays (T,) unless said.
+
+    Attributes:
+        joint_names: (n,) the robot's joints.
+        acceleration: (T, n) joint accelerations, rad/s^2 (0 at the last frame).
+        acceleration_ratio: Largest |a_j| / a_max,j of the frame (0 where no joint has a limit).
+        jerk: Largest |jerk_j| of the frame, rad/s^3.
+        torque: (T, n) joint torques, N m.
+        torque_ratio: Largest |tau_j| / tau_max,j of the frame (0 where no joint has a limit).
+        at_stop: A limited joint within :data:`AT_STOP` of one of its stops.
+        lowest: World height of the robot's lowest point, m.
+        base_height: World height of the base frame (the robot's floor), m.
+        has_acceleration_limits, has_effort_limits: Whether the robot gives them at all.
+        acceleration_limit, effort_limit: (n,) the robot's limits, rad/s^2 and N m (``inf``: none).
+    """
+
+    joint_names: tuple[str, ...]
+    acceleration: np.ndarray
+    acceleration_ratio: np.ndarray
+    jerk: np.ndarray
+    torque: np.ndarray
+    torque_ratio: np.ndarray
+    at_stop: np.ndarray
+    lowest: np.ndarray
+    base_height: float
+    has_acceleration_limits: bool
+    has_effort_limits: bool
+
+    acceleration_limit: np.ndarray
+    effort_limit: np.ndarray
+
+    @property
+    def n_frames(self) -> int:
+        return len(self.at_stop)
+
+    @property
+    def frames_over_acceleration(self) -> int:
+        return int(np.count_nonzero(self.acceleration_ratio > 1.0 + 1e-6))
+
+    @property
+    def frames_over_effort(self) -> int:
+        return int(np.count_nonzero(self.torque_ratio > 1.0 + 1e-6))
+
+    @property
+    def share_at_stop(self) -> float:
+        return float(np.count_nonzero(self.at_stop) / max(self.n_frames, 1))
+
+    @property
+    def lowest_point(self) -> float:
+        """The lowest the robot reaches in any frame, world z, m."""
+        return float(self.lowest.min(initial=np.inf)) if self.n_frames else self.base_height
+
+    def peak(self, values: np.ndarray, limits: np.ndarray) -> tuple[str, float]:
+        """The joint of the largest |value| / limit over all frames of ``values`` (T, n), and
+        that value (its |value| where no joint has a limit)."""
+        if not values.size:
+            return "", 0.0
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ratio = np.abs(values) / np.where(np.isfinite(limits), limits, np.inf)
+        if not np.any(np.isfinite(limits)):
+            ratio = np.abs(values)
+        k, j = np.unravel_index(int(np.argmax(ratio)), ratio.shape)
+        return self.joint_names[j], float(values[k, j])
+
+    def to_json(self) -> dict:
+        """The ``"controller"`` object of ``hlik evaluate --json``."""
+        accel_joint, _ = self.peak(self.acceleration, self.acceleration_limit)
+        torque_joint, torque = self.peak(self.torque, self.effort_limit)
+        return {
+            "max_acceleration_ratio": float(self.acceleration_ratio.max(initial=0.0)),
+            "acceleration_joint": accel_joint,
+            "frames_over_acceleration": self.frames_over_acceleration,
+            "max_jerk": float(self.jerk.max(initial=0.0)),
+            "max_torque_ratio": float(self.torque_ratio.max(initial=0.0)),
+            "torque_joint": torque_joint,
+            "max_torque": abs(torque),
+            "frames_over_effort": self.frames_over_effort,
+            "frames_at_stop": int(np.count_nonzero(self.at_stop)),
+            "share_at_stop": self.share_at_stop,
+            "base_height": self.base_height,
+            "lowest_point": self.lowest_point,
+            "acceleration_limits": self.has_acceleration_limits,
+            "effort_limits": self.has_effort_limits,
+        }
+
+
+def controller_checks(traj: Trajectory, robot: Robot) -> ControllerChecks:
+    """The :class:`ControllerChecks` of ``traj`` on ``robot``."""
+    q, dt = traj.q, frame_period(traj.times)
+    unlimited = np.isinf(robot.lower)
+    steps = joint_difference(q[1:], q[:-1], unlimited)  # (T-1, n)
+    velocity = np.vstack([np.zeros((1, robot.dof)), steps / dt])  # into each frame, at rest before
+    accel = np.zeros_like(q)
+    accel[:-1] = np.diff(velocity, axis=0) / dt
+    jerk = np.zeros(len(q))
+    if len(q) > 2:
+        jerk[1:-1] = np.max(np.abs(np.diff(accel[:-1], axis=0)) / dt, axis=1)
+    central = 0.5 * (velocity + np.vstack([velocity[1:], velocity[-1:]]))
+    torque = inverse_dynamics(robot, q, central, accel)
+    with np.errstate(invalid="ignore"):
+        acc_ratio = np.max(np.abs(accel) / robot.acceleration_limit, axis=1, initial=0.0)
+        tau_ratio = np.max(np.abs(torque) / robot.effort_limit, axis=1, initial=0.0)
+    limited = ~unlimited
+    near = (q[:, limited] - robot.lower[limited] < AT_STOP) | (robot.upper[limited] - q[:, limited] < AT_STOP)
+    base = float(traj.placement.translation[2])
+    return ControllerChecks(
+        joint_names=robot.joint_names,
+        acceleration=accel,
+        acceleration_ratio=np.nan_to_num(acc_ratio),
+        jerk=jerk,
+        torque=torque,
+        torque_ratio=np.nan_to_num(tau_ratio),
+        at_stop=np.any(near, axis=1),
+        lowest=base + lowest_points(robot, q),
+        base_height=base,
+        has_acceleration_limits=bool(np.any(np.isfinite(robot.acceleration_limit))),
+        has_effort_limits=bool(np.any(np.isfinite(robot.effort_limit))),
+        acceleration_limit=robot.acceleration_limit,
+        effort_limit=robot.effort_limit,
+    )
+
+
+def inverse_dynamics(robot: Robot, q: np.ndarray, qvel: np.ndarray, qacc: np.ndarray) -> np.ndarray:
+    """(T, n) joint torques (N m) of ``q``, ``qvel``, ``qacc`` (T, n) each, by ``mujoco.mj_inverse``
+    with contacts and constraints off."""
+    model = robot.model.__copy__()
+    model.opt.disableflags |= _OFF
+    data = mujoco.MjData(model)
+    out = np.empty_like(q)
+    for k in range(len(q)):
+        data.qpos[:], data.qvel[:], data.qacc[:] = q[k], qvel[k], qacc[k]
+        mujoco.mj_inverse(model, data)
+        out[k] = data.qfrc_inverse
+    return out

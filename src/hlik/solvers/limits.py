@@ -1,0 +1,216 @@
+"""The limits a robot controller checks, kept by every optimising solver in every frame.
+
+Per joint, from the robot description (:class:`hlik.robot.model.Robot`): the position stops, the
+speed, the acceleration and the effort (torque). Each frame's configuration ``q_t`` is bounded,
+given the two previous solutions ``q1 = q_t-1``, ``q2 = q_t-2`` (``v1 = (q1 - q2) / dt``), by
+
+- the position stops, |q_t - q1| <= v_max dt (speed) and |q_t - 2 q1 + q2| <= a_max dt^2
+  (acceleration): hard;
+- a margin of ``stop_margin`` inside the stops, approached by braking: the speed toward the
+  margin at distance D after the step may be at most sqrt(2 a_max D), which bounds the step in
+  closed form (:func:`braking_speed`). From any state that kept these bounds, the next frame's
+  bounds intersect (the braking speed falls by at most ``a_max dt`` per frame), so a joint is never
+  driven into its stop, it decelerates before it. The margin holds even where the target needs the
+  stop (the hand then lags by at most the margin's worth; ``stop_margin = 0`` gives the stops
+  back). These bounds are soft only against the hard ones: where a state breaks them, the hard box
+  wins and the joint returns as fast as the acceleration limit lets it;
+- the joint torques, ``tau = M(q1) (q_t - 2 q1 + q2) / dt^2 + b(q1, v1)`` (inertia, gravity and
+  Coriolis, as ``mujoco.mj_inverse`` computes them at q1 with the central-difference
+  acceleration), within ``torque_fraction`` of the effort limits: linear rows on ``q_t``.
+
+The box and the rows of a frame are a :class:`hlik.solvers.frames.JointBox`; the QP takes them as
+its step bounds and inequalities, SLSQP as linear constraints, JV as the box its steps are scaled
+into (and rows of its constrained step), and ``MinkSolver`` as a ``mink.Limit``
+(:class:`hlik.solvers.mink_tasks.FrameBoxLimit`). Written once here, so that they cannot drift apart.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from hlik.robot.model import Robot
+
+# 3 deg: a controller's usual software margin, and ARMAR-III's smallest range (Wrist 1, 53 deg) keeps
+# nine tenths of its travel
+STOP_MARGIN = math.radians(3.0)
+
+
+@dataclass(frozen=True, eq=False)
+class JointBox:
+    """Bounds (n,) each on a frame's configuration, rad (infinite for unlimited joints), and
+    optional linear rows on it, ``rows @ q <= bound`` ((k, n), (k,); the torque limits).
+
+    ``relaxed``: the stops and speed limits alone. Self-collision avoidance outranks the
+    acceleration and torque limits: where no step inside this box keeps the collision geoms apart
+    (an arm coasting toward the torso faster than it can brake), a solver steps inside ``relaxed``
+    instead, and the summary reports the acceleration it took.
+    """
+
+    lower: np.ndarray
+    upper: np.ndarray
+    rows: np.ndarray | None = None
+    bound: np.ndarray | None = None
+    relaxed: JointBox | None = None
+
+    @property
+    def outer(self) -> JointBox:
+        """The box a step may fall back to where this one leaves no room to keep the robot out
+        of itself (:attr:`relaxed`: the stops and the speed limits only), else this one."""
+        return self.relaxed or self
+
+    def step_rows(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The rows as bounds on a step ``dq`` from ``q``: (k, n), (k,) (k = 0 without rows)."""
+        if self.rows is None or self.bound is None:
+            return np.zeros((0, len(q))), np.zeros(0)
+        return self.rows, self.bound - self.rows @ q
+
+    def clip(self, q: np.ndarray) -> np.ndarray:
+        return np.minimum(np.maximum(q, self.lower), self.upper)  # half np.clip's time on (n,)
+
+    def step_bounds(self, q: np.ndarray, max_step: float) -> tuple[np.ndarray, np.ndarray]:
+        """Bounds (n,) each on a step from ``q`` into the box, at most ``max_step`` per joint; a
+        joint outside the box may only move back (0 is always allowed)."""
+        lower = np.minimum(np.maximum(self.lower - q, -max_step), 0.0)
+        upper = np.maximum(np.minimum(self.upper - q, max_step), 0.0)
+        return lower, upper
+
+
+@dataclass(frozen=True)
+class LimitSettings:
+    """What the solvers keep besides the position and speed limits (every solver's settings have
+    these fields; ``[qp]``, ``[jv]``, ``[slsqp]`` in a stack file set them).
+
+    Attributes:
+        stop_margin: Margin kept from every position stop, rad (at most a fifth of a joint's range).
+        acceleration_limits: Keep the robot's ``[acceleration_limits]`` and brake before the stops.
+        torque_limits: Keep the joint torques within ``torque_fraction`` of ``[effort_limits]``.
+        torque_fraction: Share of the effort limit the linearised torque rows allow (the rows
+            take the Coriolis terms at the previous frame's speed).
+    """
+
+    stop_margin: float = STOP_MARGIN
+    acceleration_limits: bool = True
+    torque_limits: bool = True
+    torque_fraction: float = 0.9
+
+
+@dataclass(frozen=True, eq=False)
+class MotionLimits:
+    """A robot's per-joint limits as the frame loop applies them; arrays (n,).
+
+    Attributes:
+        robot: The robot (its model gives the torques).
+        lower, upper: The position stops, rad (``-inf``/``inf`` for unlimited joints).
+        inner_lower, inner_upper: The stops moved in by the margin, rad.
+        velocity: Speed limits, rad/s.
+        acceleration: Acceleration limits, rad/s^2 (``inf``: none).
+        effort: Torque limits allowed to the solvers, N m (``inf``: none).
+    """
+
+    robot: Robot
+    lower: np.ndarray
+    upper: np.ndarray
+    inner_lower: np.ndarray
+    inner_upper: np.ndarray
+    velocity: np.ndarray
+    acceleration: np.ndarray
+    effort: np.ndarray
+
+    @classmethod
+    def of(cls, robot: Robot, settings: object = None) -> MotionLimits:
+        """The limits ``settings`` (a :class:`LimitSettings`, or a solver's settings; default
+        :class:`LimitSettings`) keep on ``robot``."""
+        s = settings if isinstance(settings, LimitSettings) else LimitSettings()
+        margin = np.minimum(s.stop_margin, 0.2 * (robot.upper - robot.lower))
+        margin = np.where(np.isfinite(margin), margin, 0.0)
+        accel = robot.acceleration_limit if s.acceleration_limits else np.full(robot.dof, np.inf)
+        effort = s.torque_fraction * robot.effort_limit if s.torque_limits else np.full(robot.dof, np.inf)
+        return cls(
+            robot,
+            robot.lower,
+            robot.upper,
+            robot.lower + margin,
+            robot.upper - margin,
+            robot.velocity_limit,
+            accel,
+            effort,
+        )
+
+    @property
+    def has_torque(self) -> bool:
+        return bool(np.any(np.isfinite(self.effort)))
+
+    def box(self, q1: np.ndarray | None, q2: np.ndarray | None, dt: float, data: mujoco.MjData | None = None):
+        """The :class:`~hlik.solvers.frames.JointBox` of the frame after ``q1`` (n,), ``q2`` (n,)
+        (the two previous solutions; ``q1`` None: the first frame, the stops only)."""
+        if q1 is None:  # the start: anywhere inside the margin
+            return JointBox(self.inner_lower, self.inner_upper)
+        q2 = q1 if q2 is None else q2
+        v1 = (q1 - q2) / dt
+        a = self.acceleration
+        reach = self.velocity * dt
+        with np.errstate(invalid="ignore"):
+            change = np.where(np.isfinite(a), a * dt * dt, np.inf)
+            coast = q1 + v1 * dt
+        hard_lo = np.maximum.reduce([self.lower, q1 - reach, coast - change])
+        hard_hi = np.minimum.reduce([self.upper, q1 + reach, coast + change])
+        # a state outside the hard box (a start beyond a stop) keeps at least the speed box
+        bad = hard_lo > hard_hi
+        hard_lo = np.where(bad, np.maximum(self.lower, q1 - reach), hard_lo)
+        hard_hi = np.where(bad, np.minimum(self.upper, q1 + reach), hard_hi)
+        # inside the margin: brake before it; in it (a start on a stop): back out of it
+        soft_hi = np.minimum(q1 + dt * braking_speed(self.inner_upper - q1, a, dt), self.inner_upper)
+        soft_lo = np.maximum(q1 - dt * braking_speed(q1 - self.inner_lower, a, dt), self.inner_lower)
+        lower = np.minimum(np.maximum(soft_lo, hard_lo), hard_hi)
+        upper = np.maximum(np.minimum(np.maximum(soft_hi, hard_lo), hard_hi), lower)
+        relaxed = JointBox(np.maximum(self.lower, q1 - reach), np.minimum(self.upper, q1 + reach))
+        if not self.has_torque:
+            return JointBox(lower, upper, relaxed=relaxed)
+        rows, bound = self.torque_rows(q1, q2, dt, data)
+        return JointBox(lower, upper, rows, bound, relaxed)
+
+    def torque_rows(
+        self, q1: np.ndarray, q2: np.ndarray, dt: float, data: mujoco.MjData | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Rows (2k, n) and bounds (2k,), ``rows @ q_t <= bound``: the torques of the k joints with
+        an effort limit, at q1 with the acceleration ``(q_t - 2 q1 + q2) / dt^2``, within it."""
+        model = self.robot.model
+        data = mujoco.MjData(model) if data is None else data
+        data.qpos[:], data.qvel[:] = q1, (q1 - q2) / dt
+        mujoco.mj_kinematics(model, data)
+        mujoco.mj_comPos(model, data)
+        mujoco.mj_crb(model, data)
+        mujoco.mj_comVel(model, data)
+        mujoco.mj_rne(model, data, 0, data.qfrc_bias)
+        inertia = full_inertia(model, data)
+        idx = np.flatnonzero(np.isfinite(self.effort))
+        m = inertia[idx] / (dt * dt)
+        offset = data.qfrc_bias[idx] - m @ (2.0 * q1 - q2)  # tau = m q_t + offset
+        effort = self.effort[idx]
+        return np.vstack([m, -m]), np.concatenate([effort - offset, effort + offset])
+
+
+def braking_speed(distance: np.ndarray, acceleration: np.ndarray, dt: float) -> np.ndarray:
+    """The largest speed v (n,) toward a stop ``distance`` (n,) away (m or rad, before the step)
+    such that after a step of ``v dt`` the joint can still stop in front of it decelerating at
+    ``acceleration`` (n,): ``v^2 <= 2 a (distance - v dt)``, solved for v. 0 at or past the stop;
+    ``inf`` without an acceleration limit or a stop."""
+    d = np.maximum(distance, 0.0)
+    with np.errstate(invalid="ignore"):
+        v = -acceleration * dt + np.sqrt(np.square(acceleration * dt) + 2.0 * acceleration * d)
+    return np.where(np.isfinite(acceleration) & np.isfinite(d), v, np.inf)
+
+
+def full_inertia(model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray:
+    """(nv, nv) the joint-space inertia matrix of the configuration ``data`` holds (after
+    ``mj_crb``), with the armature."""
+    out = np.empty((model.nv, model.nv))
+    try:
+        mujoco.mj_fullM(model, data, out)  # MuJoCo 4
+    except TypeError:
+        mujoco.mj_fullM(model, out, data.qM)  # MuJoCo 3
+    return out

@@ -1,0 +1,144 @@
+"""Acceleration limits, braking before the stops, the stop margin and the torque rows
+(hlik.solvers.limits): every optimising solver's frames stay inside them."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import mujoco
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from conftest import ROBOTS, solve_problem
+from hlik import load_robot
+from hlik.executable import controller_checks
+from hlik.human.demo import demo_motion
+from hlik.problem.problem import build_problem
+from hlik.retarget import trajectory_of
+from hlik.robot.model import SIDES
+from hlik.solvers import jv, qp, slsqp
+from hlik.solvers.limits import LimitSettings, MotionLimits, braking_speed
+from hlik.solvers.mink_ik import MinkSolver
+
+
+def _mink_solve(problem, settings=None):
+    import mink
+
+    hands = [mink.FrameTask(f"{s}_tcp", "site", position_cost=10.0, orientation_cost=1.0) for s in SIDES]
+    return MinkSolver(hands, [mink.ConfigurationLimit(problem.robot.model)])(problem)
+
+
+SOLVES = {"qp": qp.solve, "jv": jv.solve, "slsqp": slsqp.solve, "mink": _mink_solve}
+
+
+def _square_wave(problem, amplitude=(0.0, 0.25, 0.25), period=12):
+    """The problem's targets jumping back and forth by ``amplitude`` (m) every ``period`` frames
+    from frame 5 on: each joint has to reverse at the largest speed it can reach."""
+    pos = problem.targets.pos.copy()
+    k = np.arange(problem.n_frames)
+    on = (k >= 5) & (((k - 5) // period) % 2 == 0)
+    pos[on] += np.asarray(amplitude)
+    return replace(problem.targets, pos=pos)
+
+
+@pytest.mark.parametrize("solver", SOLVES)
+@pytest.mark.parametrize("name", ROBOTS)
+def test_a_target_reversing_at_full_speed_keeps_every_limit(name, solver):
+    r = load_robot(name)
+    motion = demo_motion().crop(1.0, 1.5).resample(100.0)
+    problem = build_problem(motion, r)
+    q, _ = solve_problem(SOLVES[solver], r, motion, _square_wave(problem), problem.placement)
+    dt = problem.dt
+    v = np.diff(q, axis=0) / dt
+    dv = np.diff(np.vstack([np.zeros((1, r.dof)), v]), axis=0)  # at rest before the first frame
+    assert np.all(np.abs(v) <= r.velocity_limit * (1 + 1e-9)), (name, solver)
+    ratio = np.max(np.abs(dv) / (r.acceleration_limit * dt))
+    # 1e-4: JV's steps come from a QP where the body is near (daqp's tolerance)
+    assert ratio <= 1.0 + 1e-4, (name, solver, ratio)
+    assert ratio > 0.99, "the reversals should drive some joint to its acceleration limit"
+    assert np.all(q >= r.lower - 1e-9) and np.all(q <= r.upper + 1e-9)
+    checks = controller_checks(trajectory_of(problem, q, solver), r)
+    assert np.max(checks.acceleration_ratio) <= 1.0 + 1e-4 and checks.frames_over_effort == 0, (name, solver)
+
+
+def test_every_bundled_robot_has_acceleration_and_effort_limits():
+    for name in ROBOTS:
+        r = load_robot(name)
+        assert np.all(np.isfinite(r.acceleration_limit)) and np.all(r.acceleration_limit > 0), name
+        assert np.all(np.isfinite(r.effort_limit)) and np.all(r.effort_limit > 0), name
+        assert r.acceleration_source and r.effort_source, name
+
+
+@settings(max_examples=30, deadline=None)
+@given(
+    name=st.sampled_from(ROBOTS),
+    seed=st.integers(0, 2**31 - 1),
+    greedy=st.sampled_from(["up", "down", "random"]),
+)
+def test_a_walk_through_the_boxes_never_breaks_a_limit_and_brakes_before_the_stops(name, seed, greedy):
+    """Any sequence of configurations chosen inside the frames' boxes keeps speed, acceleration and
+    the stops; one driven at full effort toward a stop comes to rest inside the margin."""
+    r = load_robot(name)
+    limits = MotionLimits.of(r, LimitSettings(torque_limits=False))
+    rng = np.random.default_rng(seed)
+    dt = 0.01
+    q2 = q1 = np.clip(r.home, limits.inner_lower, limits.inner_upper)
+    for _ in range(400):
+        box = limits.box(q1, q2, dt)
+        assert np.all(box.lower <= box.upper + 1e-12)
+        if greedy == "up":
+            q = box.upper.copy()
+        elif greedy == "down":
+            q = box.lower.copy()
+        else:
+            q = box.lower + rng.random(r.dof) * (box.upper - box.lower)
+        q = np.where(np.isfinite(q), q, q1)  # unlimited joints: any finite choice
+        v, v1 = (q - q1) / dt, (q1 - q2) / dt
+        assert np.all(np.abs(v) <= r.velocity_limit * (1 + 1e-9))
+        assert np.all(np.abs(v - v1) <= r.acceleration_limit * dt * (1 + 1e-9) + 1e-12)
+        assert np.all(q >= r.lower - 1e-12) and np.all(q <= r.upper + 1e-12)
+        # never past the margin, and never faster toward it than it can still stop
+        assert np.all(q <= limits.inner_upper + 1e-9) and np.all(q >= limits.inner_lower - 1e-9)
+        q2, q1 = q1, q
+    if greedy != "random":  # 4 s at full effort: every limited joint has come to rest at the margin
+        limited = np.isfinite(r.lower)
+        stop = limits.inner_upper if greedy == "up" else limits.inner_lower
+        np.testing.assert_allclose(q1[limited], stop[limited], atol=1e-6)
+        assert np.max(np.abs(q1 - q2)[limited]) / dt < 1e-3
+
+
+def test_the_braking_speed_stops_in_front_of_the_stop():
+    a, dt = np.array([20.0, 7.5, np.inf]), 0.01
+    d = np.array([0.1, 0.02, 0.1])
+    v = braking_speed(d, a, dt)
+    assert np.isinf(v[2])
+    # after the step, sqrt(2 a (d - v dt)) is exactly v: it can still stop
+    np.testing.assert_allclose(v[:2] ** 2, 2 * a[:2] * (d[:2] - v[:2] * dt))
+    np.testing.assert_array_equal(braking_speed(np.array([-0.1]), np.array([20.0]), dt), [0.0])
+
+
+def _with_payload(r, kg: float):
+    """``r`` with ``kg`` at each hand (a point mass at the TCP body's origin, inertia kept small)."""
+    model = r.model.__copy__()
+    for side in ("left", "right"):
+        body = model.site_bodyid[r.site_id(side, "tcp")]
+        model.body_mass[body] += kg
+        model.body_inertia[body] += kg * 1e-3
+    mujoco.mj_setConst(model, mujoco.MjData(model))
+    return replace(r, model=model)
+
+
+def test_the_torque_rows_keep_a_heavy_payload_within_the_effort_limits():
+    r = _with_payload(load_robot("dual_panda"), 2.5)
+    motion = demo_motion().crop(1.0, 2.0).resample(100.0)
+    problem = build_problem(motion, r)
+    targets = _square_wave(problem, amplitude=(0.0, 0.3, 0.3), period=15)
+    ratios = {}
+    for on in (False, True):
+        s = qp.QPSettings(torque_limits=on)
+        q, _ = solve_problem(qp.solve, r, motion, targets, problem.placement, s)
+        ratios[on] = controller_checks(trajectory_of(problem, q, "qp"), r).torque_ratio.max()
+    assert ratios[False] > 1.0, "the payload should overload a joint without the torque rows"
+    assert ratios[True] <= 1.0 + 1e-6, ratios
