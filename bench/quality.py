@@ -96,7 +96,7 @@ def run(
         tau.append(c.torque_ratio.max(initial=0.0))
         tau_over.append(c.torque_ratio > 1.0 + 1e-6)
         stop.append(c.at_stop)
-        floor.append(min(c.lowest_point, c.base_height) if c.lowest_point < 0 else c.lowest_point)
+        floor.append(c.lowest_point)
         fori.append(rotation_angle(traj.tcp_rot, traj.targets.rot).ravel())
         fpos.append(err.ravel())
         freach.append(err[reachable(robot, traj)])

@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from hlik.paths import robots_dir
 from hlik.robot.model import available_robots
 
 DATA = Path(os.environ.get("HLIK_DATA", Path(__file__).resolve().parents[2] / "shared" / "motion_data"))
@@ -32,6 +33,22 @@ def kit_takes() -> list[Path]:
     if not takes:
         data_file("kit_bimanual/<no .xml takes>")
     return takes
+
+
+G1 = robots_dir() / "examples" / "g1.toml"  # the worked example robot (the g1 extra)
+
+
+def require_g1() -> None:
+    """Skip (fail in CI) unless example-robot-data, which holds the G1's URDF, is installed."""
+    from hlik.errors import RobotError
+    from hlik.robot.model_file import resolve_package
+
+    try:
+        resolve_package("package://example-robot-data/", G1, {})
+    except RobotError as e:
+        if os.environ.get("CI", "").lower() == "true":
+            pytest.fail(str(e))
+        pytest.skip(f'{e} (pip install -e ".[g1]")')
 
 
 @pytest.fixture(scope="session")

@@ -3,7 +3,6 @@ example is the Unitree G1 of the pip package example-robot-data (the ``g1`` extr
 
 from __future__ import annotations
 
-import os
 import shutil
 from pathlib import Path
 
@@ -12,25 +11,18 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
+from conftest import G1, require_g1
 from hlik.cli import app
 from hlik.errors import RobotError
 from hlik.fk import site_poses
 from hlik.paths import robots_dir
 from hlik.robot.collision import collision_pairs
 from hlik.robot.model import COLLISION_GROUP, SIDES, SITES, load_robot, self_contacts
-from hlik.robot.model_file import resolve_package
-
-G1 = robots_dir() / "examples" / "g1.toml"
 
 
 @pytest.fixture(scope="module")
 def g1():
-    try:
-        resolve_package("package://example-robot-data/", G1, {})
-    except RobotError as e:
-        if os.environ.get("CI", "").lower() == "true":
-            pytest.fail(str(e))
-        pytest.skip(f'{e} (pip install -e ".[g1]")')
+    require_g1()
     return load_robot(str(G1))
 
 

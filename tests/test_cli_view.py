@@ -133,6 +133,18 @@ def test_overwrite_refused_without_force(short_take, tmp_path):
 # --- 2. warnings -------------------------------------------------------------------------------
 
 
+def test_a_base_given_off_its_floor_is_warned_about(short_take, tmp_path):
+    """``--placement X,Y,YAW,Z`` puts the base at Z and says the robot does not stand on its floor;
+    ``X,Y,YAW`` stands it on the floor, without the warning."""
+    base = ("run", short_take, "--solver", "jm", "--rate", "0", "--robot", "dual_panda")
+    raised = invoke(*base, "--placement", "0.5,-1,90,0.05", "--out", tmp_path / "up.rrd")
+    assert raised.exit_code == 0, raised.output
+    said = [line for line in raised.stderr.splitlines() if "does not stand on its floor" in line]
+    assert len(said) == 1 and said[0].startswith("warning:") and "0.050 m above" in said[0], said
+    floor = invoke(*base, "--placement", "0.5,-1,90", "--out", tmp_path / "floor.rrd")
+    assert floor.exit_code == 0 and "does not stand on its floor" not in floor.stderr, floor.stderr
+
+
 def test_walk_out_of_reach_is_warned_with_its_share_and_max(tmp_path):
     walk = data_file("kit_ml/00001_mmm.xml")
     out = tmp_path / "walk.rrd"
@@ -484,8 +496,6 @@ def _checks(n: int, **changes):
         at_stop=np.zeros(n, bool),
         lowest=np.zeros(n),
         base_height=0.0,
-        has_acceleration_limits=True,
-        has_effort_limits=True,
         acceleration_limit=np.ones(1),
         effort_limit=np.ones(1),
     )
@@ -505,7 +515,6 @@ def test_each_exceeded_controller_limit_gets_one_warning(solver):
         "accelerations exceed": dict(acceleration_ratio=over, acceleration=over[:, None]),
         "torques exceed": dict(torque_ratio=over, torque=over[:, None]),
         "of a stop": dict(at_stop=np.arange(n) < 7),
-        "not on the floor": dict(base_height=0.05),
         "below the floor": dict(lowest=np.full(n, -0.05)),
     }
     for words, change in cases.items():

@@ -4,7 +4,6 @@ only, and the base is at the robot's own height (README "Placement")."""
 from __future__ import annotations
 
 import functools
-import os
 from dataclasses import replace
 
 import numpy as np
@@ -12,13 +11,10 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from hlik.errors import RobotError
+from conftest import G1, require_g1
 from hlik.human.kinematics import forward_kinematics
 from hlik.human.load import load_motion
-from hlik.paths import robots_dir
 from hlik.problem.placement import (
-    floor_height,
-    lowest_point,
     mapped_placement,
     placement_from_spec,
     placement_notes,
@@ -27,13 +23,12 @@ from hlik.problem.placement import (
     yaw_rotation,
 )
 from hlik.problem.scale import scale_subject
+from hlik.robot.floor import floor_height, lowest_points
 from hlik.robot.model import available_robots, joint_mapping, load_robot
-from hlik.robot.model_file import resolve_package
 from hlik.robot.reachability import reachability_map
 from hlik.robot.state import robot_state
 
-G1 = str(robots_dir() / "examples" / "g1.toml")
-ROBOTS = (*available_robots(), G1)
+ROBOTS = (*available_robots(), str(G1))
 TOLERANCE = 1e-3  # m
 RULES = ("reach", "mapped", "shoulders", "X,Y,YAW")
 FEW = settings(max_examples=8, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
@@ -41,13 +36,8 @@ FEW = settings(max_examples=8, deadline=None, suppress_health_check=[HealthCheck
 
 @functools.cache
 def _robot(name: str):
-    if name == G1:
-        try:
-            resolve_package("package://example-robot-data/", robots_dir() / "examples" / "g1.toml", {})
-        except RobotError as e:
-            if os.environ.get("CI", "").lower() == "true":
-                pytest.fail(str(e))
-            pytest.skip(f'{e} (pip install -e ".[g1]")')
+    if name == str(G1):
+        require_g1()
     return load_robot(name)
 
 
@@ -64,7 +54,7 @@ def test_every_model_stands_on_the_floor_of_its_base_frame(name):
     """The convention of robots/README.md, measured: the lowest point of all geometry (visual and
     collision) at home is z = 0 of the base frame, to 1 mm; so the base stands at its origin."""
     robot = _robot(name)
-    low = float(lowest_point(robot, robot.home[None])[0])
+    low = float(lowest_points(robot, robot.home[None])[0])
     assert abs(low) < TOLERANCE, f"{robot.name}: lowest point at home {low * 1e3:.2f} mm"
     assert floor_height(robot) == pytest.approx(-low, abs=1e-4)
 
@@ -100,7 +90,7 @@ def test_placement_stands_the_robot_on_the_floor_wherever_the_motion_is(
     else:
         placement = placement_from_spec(",".join(f"{v:.6f}" for v in given_pose), robot, moved, human)
     np.testing.assert_allclose(placement.rotation[:, 2], [0, 0, 1], atol=1e-12)  # upright
-    low = float(lowest_point(robot, q, placement).min())
+    low = float(lowest_points(robot, q, placement.rotation, placement.translation[2]).min())
     assert abs(low) < TOLERANCE, f"{robot.name} ({rule}): lowest point {low * 1e3:.1f} mm"
     assert not placement_notes(robot, placement)
 

@@ -4,48 +4,35 @@ through each other are a self-contact and the solvers keep them apart."""
 
 from __future__ import annotations
 
-import os
-
 import mujoco
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from hlik.errors import RobotError
+from conftest import G1, require_g1
 from hlik.human.load import load_motion
-from hlik.paths import robots_dir
 from hlik.problem.scale import scale_subject
 from hlik.retarget import retarget
 from hlik.robot import model_file
 from hlik.robot.collision import collision_pairs
 from hlik.robot.model import COLLISION_GROUP, SIDES, joint_mapping, load_robot, self_contacts
-from hlik.robot.model_file import FITTED, resolve_package
+from hlik.robot.model_file import FITTED
 from hlik.robot.state import robot_state
 from hlik.solvers import qp
 
-G1 = robots_dir() / "examples" / "g1.toml"
 HANDS = ("left_rubber_hand", "right_rubber_hand")
-
-
-def _require_g1() -> None:
-    try:
-        resolve_package("package://example-robot-data/", G1, {})
-    except RobotError as e:
-        if os.environ.get("CI", "").lower() == "true":
-            pytest.fail(str(e))
-        pytest.skip(f'{e} (pip install -e ".[g1]")')
 
 
 @pytest.fixture(scope="module")
 def g1():
-    _require_g1()
+    require_g1()
     return load_robot(str(G1))
 
 
 @pytest.fixture(scope="module")
 def bare_g1():
     """The G1 as compiled before: no primitives fitted to its visual-only bodies."""
-    _require_g1()
+    require_g1()
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(model_file, "fit_collision_shapes", lambda spec, model: [])
         return load_robot(str(G1))

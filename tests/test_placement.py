@@ -18,7 +18,6 @@ from hlik.human.load import load_motion
 from hlik.placement_search import optimize_placement
 from hlik.problem.placement import (
     Placement,
-    floor_height,
     mapped_placement,
     placement_from_spec,
     reach_placement,
@@ -27,6 +26,7 @@ from hlik.problem.placement import (
 )
 from hlik.problem.problem import build_problem
 from hlik.problem.targets import HandTargets
+from hlik.robot.floor import floor_height
 from hlik.robot.model import SIDES, joint_mapping, load_robot
 from hlik.robot.reachability import reachability_map
 from hlik.robot.state import robot_state

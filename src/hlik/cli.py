@@ -222,7 +222,7 @@ def run(
     from hlik.metrics import evaluate as evaluate_trajectory
     from hlik.paths import tasks_dir
     from hlik.placement_search import optimize_placement
-    from hlik.problem.placement import placement_from_spec
+    from hlik.problem.placement import placement_from_spec, placement_notes
     from hlik.problem.scale import scale_subject
     from hlik.recording import LAYOUTS
     from hlik.retarget import retarget
@@ -294,6 +294,7 @@ def run(
                 where, tried = optimize_placement(m, r, fast, learned, scenario)
             else:
                 where = placement_from_spec(placement, r, m)
+            notes += placement_notes(r, where)  # a base given off its floor
             progress.update(
                 task, description=f"retargeting to {r.title} ({tag})", total=m.n_frames, completed=0
             )
@@ -475,7 +476,7 @@ def _controller_line(c) -> str:
 
 def _controller_warnings(c, tracking: bool, share) -> list[str]:
     """One ``warning:`` line for each limit :class:`ControllerChecks` ``c`` finds exceeded."""
-    from hlik.executable import FLOOR_TOLERANCE
+    from hlik.executable import BELOW_FLOOR
 
     j, notes = c.to_json(), []
     if tracking and c.frames_over_acceleration:
@@ -493,9 +494,7 @@ def _controller_warnings(c, tracking: bool, share) -> list[str]:
             f"a joint is within 0.5° of a stop in {share(int(j['frames_at_stop']))} "
             "(a controller keeps a margin)"
         )
-    if abs(c.base_height) > 1e-3:
-        notes.append(f"the robot's base is at z = {c.base_height:.3f} m, not on the floor")
-    if c.lowest_point < -FLOOR_TOLERANCE:
+    if c.lowest_point < -BELOW_FLOOR:
         notes.append(f"the robot reaches {100 * -c.lowest_point:.1f} cm below the floor")
     return notes
 

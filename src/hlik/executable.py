@@ -27,7 +27,7 @@ from hlik.trajectory import Trajectory
 AT_STOP = math.radians(0.5)  # a joint this close to a stop "sits on it"
 _D = mujoco.mjtDisableBit
 _OFF = _D.mjDSBL_CONSTRAINT | _D.mjDSBL_SPRING | _D.mjDSBL_DAMPER  # contacts, limits; passive forces
-FLOOR_TOLERANCE = 0.01  # m: a lowest point farther from the floor is "in" or "above" it
+BELOW_FLOOR = 0.01  # m: a lowest point this far under the floor is reported
 
 
 @dataclass(frozen=True, eq=False)
@@ -44,7 +44,6 @@ class ControllerChecks:
         at_stop: A limited joint within :data:`AT_STOP` of one of its stops.
         lowest: World height of the robot's lowest point, m.
         base_height: World height of the base frame (the robot's floor), m.
-        has_acceleration_limits, has_effort_limits: Whether the robot gives them at all.
         acceleration_limit, effort_limit: (n,) the robot's limits, rad/s^2 and N m (``inf``: none).
     """
 
@@ -57,11 +56,18 @@ class ControllerChecks:
     at_stop: np.ndarray
     lowest: np.ndarray
     base_height: float
-    has_acceleration_limits: bool
-    has_effort_limits: bool
-
     acceleration_limit: np.ndarray
     effort_limit: np.ndarray
+
+    @property
+    def has_acceleration_limits(self) -> bool:
+        """Whether the robot gives an acceleration limit for any joint."""
+        return bool(np.any(np.isfinite(self.acceleration_limit)))
+
+    @property
+    def has_effort_limits(self) -> bool:
+        """Whether the robot gives an effort limit for any joint."""
+        return bool(np.any(np.isfinite(self.effort_limit)))
 
     @property
     def n_frames(self) -> int:
@@ -136,7 +142,8 @@ def controller_checks(traj: Trajectory, robot: Robot) -> ControllerChecks:
         tau_ratio = np.max(np.abs(torque) / robot.effort_limit, axis=1, initial=0.0)
     limited = ~unlimited
     near = (q[:, limited] - robot.lower[limited] < AT_STOP) | (robot.upper[limited] - q[:, limited] < AT_STOP)
-    base = float(traj.placement.translation[2])
+    p = traj.placement
+    base = float(p.translation[2])
     return ControllerChecks(
         joint_names=robot.joint_names,
         acceleration=accel,
@@ -145,10 +152,8 @@ def controller_checks(traj: Trajectory, robot: Robot) -> ControllerChecks:
         torque=torque,
         torque_ratio=np.nan_to_num(tau_ratio),
         at_stop=np.any(near, axis=1),
-        lowest=base + lowest_points(robot, q),
+        lowest=lowest_points(robot, q, p.rotation, base),
         base_height=base,
-        has_acceleration_limits=bool(np.any(np.isfinite(robot.acceleration_limit))),
-        has_effort_limits=bool(np.any(np.isfinite(robot.effort_limit))),
         acceleration_limit=robot.acceleration_limit,
         effort_limit=robot.effort_limit,
     )

@@ -5,7 +5,7 @@ the joint mapping (``mapped``) where the human's own joint angles would put the 
 The first favours tracking, the second human likeness. This search retargets a short subsample of
 the motion from candidates on the line between the two (and the shoulder placement) with a fast
 solver and keeps the candidate with the highest unified metric m_hl,f. Every candidate stands the
-robot on its floor (:func:`~hlik.problem.placement.floor_height`): the search is over x, y and yaw.
+robot on its floor (:func:`~hlik.robot.floor.floor_height`): the search is over x, y and yaw.
 """
 
 from __future__ import annotations

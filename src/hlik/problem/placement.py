@@ -1,10 +1,11 @@
 """Where the robot stands in the human's world: a rigid transform ``world <- robot base``.
 
 Every rule stands the robot on the human's floor (world z = 0): the base is upright (a yaw about
-the vertical) at the robot's own height, :func:`floor_height` (0 for a model that follows the
-convention of robots/README.md, its floor at z = 0 of the base frame), and a rule chooses only x, y
-and yaw (``Robot.placement`` names each robot's default). A robot smaller than the subject is not
-sunk to the subject's shoulders: the subject is scaled to it (``subject_scale``, :mod:`hlik.problem.scale`).
+the vertical) at the robot's own height, :func:`hlik.robot.floor.floor_height` (0 for a model that
+follows the convention of robots/README.md, its floor at z = 0 of the base frame), and a rule
+chooses only x, y and yaw (``Robot.placement`` names each robot's default). A robot smaller than
+the subject is not sunk to the subject's shoulders: the subject is scaled to it
+(``subject_scale``, :mod:`hlik.problem.scale`).
 
 - ``shoulders``: the midpoint of the robot's shoulders on the human's at the first frame, facing the
   same way (heading from the shoulder line, so a slouch or a turned pelvis does not tilt the robot).
@@ -21,23 +22,20 @@ sunk to the subject's shoulders: the subject is scaled to it (``subject_scale``,
 
 from __future__ import annotations
 
-import functools
 from dataclasses import dataclass
 
-import mujoco
 import numpy as np
 from scipy.ndimage import uniform_filter
-from scipy.spatial import ConvexHull, QhullError
 
 from hlik.errors import SettingsError
 from hlik.fk import site_poses
 from hlik.human.kinematics import HumanKinematics, forward_kinematics, shoulder_frame
 from hlik.human.motion import HumanMotion
+from hlik.robot.floor import FLOOR_TOLERANCE, floor_height
 from hlik.robot.model import SIDES, Robot, joint_mapping, tcp_poses
 from hlik.robot.reachability import ReachabilityMap, reachability_map
 
 PLACEMENTS = ("reach", "mapped", "shoulders")
-FLOOR_TOLERANCE = 1e-3  # m: a base this close to the robot's floor height stands on the floor
 
 
 @dataclass(frozen=True, eq=False)
@@ -93,74 +91,6 @@ def shoulder_placement(robot: Robot, human: HumanKinematics) -> Placement:
     translation = o_hum - rotation @ o_rob
     translation[2] = floor_height(robot)
     return Placement(rotation, translation, "shoulders")
-
-
-def floor_height(robot: Robot) -> float:
-    """Height of the base origin above the floor when the robot stands on it, m: minus the lowest
-    point of its geometry (visual and collision) at home, in the base frame. 0 for the bundled
-    models and the G1 example, whose floor is z = 0 of the base frame (robots/README.md; tested).
-    Rounded to 0.1 mm (a summary then reads 0.00, not -0.00)."""
-    return 0.0 - round(_home_lowest(robot), 4)  # 0.0 - x: never -0.0
-
-
-@functools.lru_cache(maxsize=32)
-def _home_lowest(robot: Robot) -> float:
-    return float(lowest_point(robot, robot.home[None])[0])
-
-
-def lowest_point(robot: Robot, q: np.ndarray, placement: Placement | None = None) -> np.ndarray:
-    """(T,) the lowest world z of the robot's geometry (every geom, visual and collision) at each
-    configuration of ``q`` (T, n), the base at ``placement`` (the base frame if None), m.
-
-    Exact for primitives and meshes (a mesh's lowest point is a vertex of its convex hull).
-    """
-    model = robot.model
-    q = np.atleast_2d(np.asarray(q, dtype=float))
-    rotation = np.eye(3) if placement is None else placement.rotation
-    lift = 0.0 if placement is None else float(placement.translation[2])
-    up = rotation[2]  # the world's z axis in the base frame
-    data = mujoco.MjData(model)
-    pos = np.empty((len(q), model.ngeom, 3))
-    mat = np.empty((len(q), model.ngeom, 3, 3))
-    for k, qk in enumerate(q):
-        data.qpos[:] = qk
-        mujoco.mj_kinematics(model, data)
-        pos[k], mat[k] = data.geom_xpos, data.geom_xmat.reshape(-1, 3, 3)
-    axis_z = np.einsum("i,tgij->tgj", up, mat)  # (T, g, 3): world z of each geom axis
-    centre_z = pos @ up + lift
-    size = model.geom_size
-    low = np.full((len(q), model.ngeom), np.inf)
-    geom = mujoco.mjtGeom
-    for g in range(model.ngeom):
-        a, s, kind = axis_z[:, g], size[g], model.geom_type[g]
-        if kind == geom.mjGEOM_MESH:
-            depth = (a @ _hull_vertices(robot, int(model.geom_dataid[g])).T).min(axis=1)
-        elif kind == geom.mjGEOM_SPHERE:
-            depth = np.full(len(q), -s[0])
-        elif kind == geom.mjGEOM_CAPSULE:
-            depth = -np.abs(a[:, 2]) * s[1] - s[0]
-        elif kind == geom.mjGEOM_CYLINDER:
-            depth = -np.abs(a[:, 2]) * s[1] - s[0] * np.sqrt(np.clip(1.0 - a[:, 2] ** 2, 0.0, 1.0))
-        elif kind == geom.mjGEOM_BOX:
-            depth = -np.abs(a) @ s
-        elif kind == geom.mjGEOM_ELLIPSOID:
-            depth = -np.sqrt(((a * s) ** 2).sum(axis=1))
-        else:  # planes, height fields: no bottom of their own
-            continue
-        low[:, g] = centre_z[:, g] + depth
-    return low.min(axis=1)
-
-
-@functools.lru_cache(maxsize=256)
-def _hull_vertices(robot: Robot, mesh: int) -> np.ndarray:
-    """(k, 3) the vertices of a mesh's convex hull, in the mesh (geom) frame."""
-    m = robot.model
-    start = int(m.mesh_vertadr[mesh])
-    vert = np.array(m.mesh_vert[start : start + int(m.mesh_vertnum[mesh])], dtype=float)
-    try:
-        return vert[ConvexHull(vert).vertices]
-    except (QhullError, ValueError):  # flat or tiny: every vertex
-        return vert
 
 
 def placement_notes(robot: Robot, placement: Placement) -> list[str]:
@@ -294,7 +224,7 @@ def placement_from_spec(
 ) -> Placement:
     """The placement named by ``spec``: ``reach``, ``mapped``, ``shoulders``, ``X,Y,YAW`` (world
     metres and degrees about z; standing on the floor) or ``X,Y,YAW,Z`` (and the base height, m:
-    off the floor unless Z is :func:`floor_height`; :func:`placement_notes` warns).
+    off the floor unless Z is :func:`~hlik.robot.floor.floor_height`; :func:`placement_notes` warns).
 
     Raises:
         SettingsError: anything else.

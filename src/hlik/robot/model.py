@@ -270,7 +270,9 @@ def _build(path: Path, desc: dict, need_mapping: bool = True) -> Robot:
     acceleration, acceleration_source = _joint_limits(
         path, desc, names, "acceleration_limits", "rad/s^2", {}, required=False
     )
-    effort, effort_source = _joint_limits(path, desc, names, "effort_limits", "N m", compiled.effort, False)
+    effort, effort_source = _joint_limits(
+        path, desc, names, "effort_limits", "N m", compiled.effort, required=False
+    )
     mapping = _mapping(path, desc, names)
     missing = [j for s in SIDES for j in arms[s] if j not in {m.joint for m in mapping.joints}]
     if missing and need_mapping:
@@ -435,7 +437,7 @@ def _joint_limits(
     inherited = [n for n in names if n not in table and n in from_model]
     table.update({n: from_model[n] for n in inherited})
     if inherited:
-        attribute = {"velocity_limits": "velocity", "effort_limits": "effort"}.get(key, key)
+        attribute = key.removesuffix("_limits")  # velocity_limits: the URDF's <limit velocity>
         source = "; ".join(filter(None, [source, f"URDF <limit {attribute}> of {len(inherited)} joints"]))
     missing = [n for n in names if n not in table]
     if missing:

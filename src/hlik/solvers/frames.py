@@ -6,7 +6,7 @@ pose, as JM gives it), with the frame's targets and human reference in a one-row
 what the speed and acceleration limits allow since the previous frames, braking before the stops,
 and the torque rows (:mod:`hlik.solvers.limits`), so no frame jumps; a frame whose target lies
 farther lags behind it. The first frame, where the robot starts from the mapped human pose, is
-bounded by the joint limits only.
+bounded by the joint limits moved in by their margin only.
 """
 
 from __future__ import annotations
@@ -44,12 +44,10 @@ FrameSolver = Callable[[int, Sample, np.ndarray, JointBox], FrameResult]
 
 
 def joint_box(robot: Robot, q_previous: np.ndarray | None, dt: float) -> JointBox:
-    """The joint limits, intersected with the speed limits' reach from ``q_previous`` if given (no
-    acceleration, margin or torque: :meth:`MotionLimits.box` adds them)."""
-    if q_previous is None:
-        return JointBox(robot.lower, robot.upper)
-    reach = robot.velocity_limit * dt
-    return JointBox(np.maximum(robot.lower, q_previous - reach), np.minimum(robot.upper, q_previous + reach))
+    """The joint limits, intersected with the speed limits' reach from ``q_previous`` if given: the
+    box of :meth:`MotionLimits.box` without the margin, the acceleration and the torque limits."""
+    speed_only = LimitSettings(stop_margin=0.0, acceleration_limits=False, torque_limits=False)
+    return MotionLimits.of(robot, speed_only).box(q_previous, q_previous, dt)
 
 
 def sample_at(ref: HumanReference, targets: HandTargets, k: int, history: np.ndarray, dt: float) -> Sample:
@@ -131,6 +129,27 @@ def iterate(
             converged = True
             break
     return FrameResult(q, steps, converged)
+
+
+def constrained_steps(
+    box: JointBox, q: np.ndarray, max_step: float, a_col: np.ndarray, b_col: np.ndarray
+) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]:
+    """What a step ``dq`` from ``q`` (n,) tries to keep, in order, each as step bounds (n,) twice
+    and rows ``a @ dq <= b``: (1) every row, the box's (torque) and the collision rows ``a_col``,
+    ``b_col`` (k, n), (k,), inside ``box``; where no step meets them, (2) the collision rows alone
+    inside ``box.relaxed`` (self-collision outranks the acceleration and torque limits), then (3)
+    relaxed to "come no closer"; last (4) every row relaxed to "no worse" inside ``box``. The QP and
+    JV take the first their solver can meet."""
+    lower, upper = box.step_bounds(q, max_step)
+    a_box, b_box = box.step_rows(q)
+    a, b = np.vstack([a_box, a_col]), np.concatenate([b_box, b_col])
+    tries = [(lower, upper, a, b)]
+    if len(b_col) and box.relaxed is not None:
+        lower_r, upper_r = box.relaxed.step_bounds(q, max_step)
+        tries += [(lower_r, upper_r, a_col, b_col), (lower_r, upper_r, a_col, np.maximum(b_col, 0.0))]
+    if len(b):
+        tries.append((lower, upper, a, np.maximum(b, 0.0)))
+    return tries
 
 
 def collision_rows(

@@ -40,7 +40,7 @@ from hlik.robot.collision import CollisionPairs, DistanceBounds, collision_pairs
 from hlik.robot.model import Robot
 from hlik.robot.state import RobotState, robot_state
 from hlik.solvers.base import ConfiguredSolver, SolverResult, check_settings
-from hlik.solvers.frames import FrameResult, JointBox, collision_rows, iterate, track
+from hlik.solvers.frames import FrameResult, JointBox, collision_rows, constrained_steps, iterate, track
 from hlik.solvers.limits import LimitSettings, MotionLimits
 from hlik.solvers.qp import solve_qp
 
@@ -254,28 +254,19 @@ def _avoiding_step(
     xdot: np.ndarray,
     weights: np.ndarray,
     damping: float,
-    rows: np.ndarray,
-    rhs: np.ndarray,
-    q: np.ndarray,
-    box: JointBox,
-    settings: JVSettings,
+    tries: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]],
     null_step: Callable[[np.ndarray, np.ndarray], np.ndarray],
 ) -> tuple[np.ndarray, np.ndarray]:
-    """The task step under the collision rows (:func:`avoiding_least_norm`) and the null-space step
-    of the targets and the rows it holds at their bound (before bounding), each (n,).
-
-    Rows that cannot all be met within the box are relaxed to "come no closer"; if even that fails,
-    the task step is zero.
-    """
-    tries = [(box, rhs), (box.outer, rhs), (box, np.maximum(rhs, 0.0)), (box.outer, np.maximum(rhs, 0.0))]
-    # box.outer: no room within the acceleration limits to keep the body apart, the rows win
-    for within, bounds in tries:
-        lower, upper = within.step_bounds(q, settings.max_step)
+    """The task step under the rows (:func:`avoiding_least_norm`) and the null-space step of the
+    targets and the rows it holds at their bound (before bounding), each (n,): the first of
+    ``tries`` (:func:`hlik.solvers.frames.constrained_steps`) that can be met; if none can, zero."""
+    n = jac.shape[1]
+    for lower, upper, rows, bounds in tries:
         task = avoiding_least_norm(jac, xdot, weights, damping, rows, bounds, lower, upper)
         if task is not None:
             active = rows @ task >= bounds - 1e-7
             return task, null_step(np.vstack([jac, rows[active]]), task)
-    return np.zeros(len(q)), np.zeros(len(q))
+    return np.zeros(n), np.zeros(n)
 
 
 def criterion_terms(robot: Robot, settings: JVSettings, learned: Learned | None) -> list[Term]:
@@ -388,13 +379,14 @@ def step(
     # clipped into the frame's box here: iterate clips into the outer box only, which the
     # collision step below may need
     dq = box.clip(q + dq) - q
-    rows, rhs = box.step_rows(q)  # the torque limits
+    a_col, b_col = np.zeros((0, robot.dof)), np.zeros(0)
     if pairs is not None and len(pairs):
         a_col, b_col = collision_rows(robot, data, pairs, bounds, settings)  # q's kinematics in data
-        rows, rhs = np.vstack([rows, a_col]), np.concatenate([rhs, b_col])
+    tries = constrained_steps(box, q, settings.max_step, a_col, b_col)
+    _, _, rows, rhs = tries[0]  # every row: the torque limits and the collision rows
     if len(rhs) and np.all(np.isfinite(dq)):
         if np.any(rows @ dq > rhs + 1e-9):
-            task, null = _avoiding_step(jac, xdot, weights, damping, rows, rhs, q, box, settings, null_step)
+            task, null = _avoiding_step(jac, xdot, weights, damping, tries, null_step)
             null, null_bound = bounded(null)
             # the null-space step may not break the rows the task step left free (nor worsen one
             # it could not meet), nor max_step

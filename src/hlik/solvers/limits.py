@@ -156,18 +156,18 @@ class MotionLimits:
         with np.errstate(invalid="ignore"):
             change = np.where(np.isfinite(a), a * dt * dt, np.inf)
             coast = q1 + v1 * dt
-        hard_lo = np.maximum.reduce([self.lower, q1 - reach, coast - change])
-        hard_hi = np.minimum.reduce([self.upper, q1 + reach, coast + change])
+        relaxed = JointBox(np.maximum(self.lower, q1 - reach), np.minimum(self.upper, q1 + reach))
+        hard_lo = np.maximum(relaxed.lower, coast - change)
+        hard_hi = np.minimum(relaxed.upper, coast + change)
         # a state outside the hard box (a start beyond a stop) keeps at least the speed box
         bad = hard_lo > hard_hi
-        hard_lo = np.where(bad, np.maximum(self.lower, q1 - reach), hard_lo)
-        hard_hi = np.where(bad, np.minimum(self.upper, q1 + reach), hard_hi)
+        hard_lo = np.where(bad, relaxed.lower, hard_lo)
+        hard_hi = np.where(bad, relaxed.upper, hard_hi)
         # inside the margin: brake before it; in it (a start on a stop): back out of it
         soft_hi = np.minimum(q1 + dt * braking_speed(self.inner_upper - q1, a, dt), self.inner_upper)
         soft_lo = np.maximum(q1 - dt * braking_speed(q1 - self.inner_lower, a, dt), self.inner_lower)
         lower = np.minimum(np.maximum(soft_lo, hard_lo), hard_hi)
         upper = np.maximum(np.minimum(np.maximum(soft_hi, hard_lo), hard_hi), lower)
-        relaxed = JointBox(np.maximum(self.lower, q1 - reach), np.minimum(self.upper, q1 + reach))
         if not self.has_torque:
             return JointBox(lower, upper, relaxed=relaxed)
         rows, bound = self.torque_rows(q1, q2, dt, data)

@@ -30,7 +30,7 @@ from hlik.robot.collision import CollisionPairs, DistanceBounds, collision_pairs
 from hlik.robot.model import Robot
 from hlik.robot.state import robot_state
 from hlik.solvers.base import ConfiguredSolver, SolverResult, check_settings
-from hlik.solvers.frames import FrameResult, JointBox, collision_rows, iterate, track
+from hlik.solvers.frames import FrameResult, JointBox, collision_rows, constrained_steps, iterate, track
 from hlik.solvers.limits import LimitSettings, MotionLimits
 
 # HJA_r's Table II gamma (2) doubled for the QP: beside SYN (gamma 6) it barely acted, and SYN +
@@ -205,21 +205,11 @@ def step(
         hessian = hessian + a.T @ a
         gradient += a.T @ np.concatenate(errors)
     box = box or JointBox(robot.lower, robot.upper)
-    lb, ub = box.step_bounds(q, settings.max_step)
-    a_ineq, b_ineq = box.step_rows(q)  # the torque limits
+    a_col, b_col = np.zeros((0, robot.dof)), np.zeros(0)
     if pairs is not None and len(pairs):
         a_col, b_col = collision_rows(robot, data, pairs, bounds, settings)  # q's kinematics in data
-        a_ineq, b_ineq = np.vstack([a_ineq, a_col]), np.concatenate([b_ineq, b_col])
-    tries = [(lb, ub, a_ineq, b_ineq)]
-    if pairs is not None and len(pairs) and box.relaxed is not None:
-        # no step within the acceleration (and torque) limits keeps the body apart: the collision
-        # rows win, inside the stops and speed limits
-        lb_r, ub_r = box.relaxed.step_bounds(q, settings.max_step)
-        tries += [(lb_r, ub_r, a_col, b_col), (lb_r, ub_r, a_col, np.maximum(b_col, 0.0))]
-    if len(b_ineq):  # too close already (or a torque over its limit) and boxed in: at least no worse
-        tries.append((lb, ub, a_ineq, np.maximum(b_ineq, 0.0)))
     dq = None
-    for lower, upper, a, b in tries:
+    for lower, upper, a, b in constrained_steps(box, q, settings.max_step, a_col, b_col):
         dq = solve_qp(hessian, gradient, lower, upper, settings.solver, a, b)
         if dq is not None:
             break

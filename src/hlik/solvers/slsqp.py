@@ -113,6 +113,7 @@ def objective_scale(weights: np.ndarray, gammas: np.ndarray, h: np.ndarray, dh_d
 
 
 PRECONDITIONERS = ("gauss_newton", "scale", "none")
+COLLISION_TOLERANCE = 1e-4  # m, NLopt's tolerance on the collision constraints
 BOX_TOLERANCE = 1e-8  # rad, NLopt's tolerance on the joint box rows of a Chart (solve_frame says why)
 
 
@@ -534,27 +535,29 @@ class CollisionConstraint:
         self.bounds = DistanceBounds(pairs)
         self.chart: Chart | None = None
 
-    def __call__(self, result: np.ndarray, x: np.ndarray, grad: np.ndarray) -> None:
-        s, m = self.settings, self.robot.model
-        self.data.qpos[:] = x if self.chart is None else self.chart.q(x)
+    def distances(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Signed distances (k,) and their gradients (k, n) of the pairs closer than
+        ``collision_detect`` at ``q`` (n,)."""
+        m = self.robot.model
+        self.data.qpos[:] = q
         mujoco.mj_kinematics(m, self.data)
         mujoco.mj_comPos(m, self.data)
-        dist, jac = pair_distances(self.robot, self.data, self.pairs, s.collision_detect, self.bounds)
+        return pair_distances(self.robot, self.data, self.pairs, self.settings.collision_detect, self.bounds)
+
+    def too_close(self, q: np.ndarray) -> bool:
+        """Whether a pair is closer than the margin at ``q`` (n,), beyond NLopt's tolerance."""
+        dist, _ = self.distances(q)
+        return bool(np.any(dist < self.settings.collision_margin - COLLISION_TOLERANCE))
+
+    def __call__(self, result: np.ndarray, x: np.ndarray, grad: np.ndarray) -> None:
+        s = self.settings
+        dist, jac = self.distances(x if self.chart is None else self.chart.q(x))
         order = np.argsort(dist)[: s.collision_pairs]
         result[:] = s.collision_margin - s.collision_detect  # absent pairs: far, met
         result[: len(order)] = s.collision_margin - dist[order]
         if grad.size:
             grad[:] = 0.0
             grad[: len(order)] = -jac[order] if self.chart is None else -jac[order] @ self.chart.T
-
-
-def too_close(collision: CollisionConstraint, q: np.ndarray) -> bool:
-    """Whether a pair of collision geoms is closer than the margin at ``q`` (n,)."""
-    chart, collision.chart = collision.chart, None
-    result = np.empty(collision.settings.collision_pairs)
-    collision(result, q, np.empty(0))
-    collision.chart = chart
-    return bool(np.max(result) > 1e-4)
 
 
 class BoxConstraint:
@@ -603,7 +606,8 @@ def solve_frame(
     opt.remove_inequality_constraints()
     if collision is not None:
         collision.chart = chart
-        opt.add_inequality_mconstraint(collision, np.full(collision.settings.collision_pairs, 1e-4))
+        tolerance = np.full(collision.settings.collision_pairs, COLLISION_TOLERANCE)
+        opt.add_inequality_mconstraint(collision, tolerance)
     if chart is None:
         opt.set_lower_bounds(box.lower)
         opt.set_upper_bounds(box.upper)
@@ -661,7 +665,7 @@ def solve(
         start = q
         q, status[k] = solve_frame(opt, obj, frame, box.clip(start), max_eval, box, collision)
         evaluations = obj.evaluations
-        if status[k] < 0 and collision is not None and box.relaxed is not None and too_close(collision, q):
+        if status[k] < 0 and collision is not None and box.relaxed is not None and collision.too_close(q):
             # no room within the acceleration and torque limits to keep the body apart: the
             # collision constraints win
             box = box.relaxed
