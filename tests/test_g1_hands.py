@@ -118,11 +118,6 @@ def close_take(takes):
     return load_motion(path, rate=50.0).crop(3.0, 7.0)
 
 
-@pytest.mark.xfail(
-    reason="issue 27, unfinished: under the acceleration limits the QP's collision fallback does not yet "
-    "keep the G1's fitted hand shapes apart in every frame (see the closing note)",
-    strict=False,
-)
 def test_the_qp_keeps_the_hands_apart_where_jm_puts_them_through_each_other(g1, close_take):
     motion = scale_subject(close_take, g1)
     jm = joint_mapping(g1, motion)

@@ -142,3 +142,38 @@ def test_the_torque_rows_keep_a_heavy_payload_within_the_effort_limits():
         ratios[on] = controller_checks(trajectory_of(problem, q, "qp"), r).torque_ratio.max()
     assert ratios[False] > 1.0, "the payload should overload a joint without the torque rows"
     assert ratios[True] <= 1.0 + 1e-6, ratios
+
+
+def _closest_pair(r, q) -> float:
+    """The smallest distance between the robot's collision pairs at ``q`` (m; 1 if none is near)."""
+    from hlik.robot.collision import collision_pairs, pair_distances
+
+    pairs, data = collision_pairs(r), mujoco.MjData(r.model)
+    data.qpos[:] = q
+    mujoco.mj_kinematics(r.model, data)
+    mujoco.mj_comPos(r.model, data)
+    dist, _ = pair_distances(r, data, pairs, 1.0)
+    return float(dist.min()) if len(dist) else 1.0
+
+
+@pytest.mark.parametrize("solver", ["qp", "jv", "slsqp"])
+@pytest.mark.parametrize("name", ROBOTS)
+def test_hands_sent_into_each_other_brake_before_the_margin(name, solver):
+    """Both hand targets slide to the point between the hands in 0.3 s (a closing speed of about
+    1 m/s, a fast human clap): the arms must brake in time and stop at the collision margin
+    within the acceleration and torque limits (the damper alone stopped them within a frame, or
+    gave up the limits to do it). Closings faster than the arms can brake from where the pair is
+    first looked for are not covered (README, "Executable motion")."""
+    r = load_robot(name)
+    motion = demo_motion().crop(1.0, 1.8).resample(100.0)
+    problem = build_problem(motion, r)
+    pos = problem.targets.pos.copy()
+    share = np.clip((np.arange(len(pos)) - 5) / 30.0, 0.0, 1.0)[:, None, None]
+    pos = (1 - share) * pos + share * pos.mean(axis=1, keepdims=True)
+    q, _ = solve_problem(SOLVES[solver], r, motion, replace(problem.targets, pos=pos), problem.placement)
+    checks = controller_checks(trajectory_of(problem, q, solver), r)
+    assert np.max(checks.acceleration_ratio) <= 1.0 + 1e-4 and checks.frames_over_effort == 0, (name, solver)
+    margin = qp.QPSettings().collision_margin
+    closest = np.array([_closest_pair(r, x) for x in q])
+    assert closest.min() >= min(margin, closest[0]) - 1e-3, (name, solver, closest.min())
+    assert closest[5:].min() < 0.05, "the hands should come close"

@@ -85,14 +85,22 @@ class DistanceBounds:
 
     def update(self, pos: np.ndarray, mat: np.ndarray, pairs: CollisionPairs) -> np.ndarray:
         """The bounds (p,) moved to the geom poses ``pos`` (g, 3), ``mat`` (g, 9), now held."""
-        if self.pos is not None:
-            dx, dr = pos - self.pos, mat - self.mat
-            shift = np.sqrt(np.einsum("gi,gi->g", dx, dx)) + pairs.rbound * np.sqrt(
-                np.einsum("gi,gi->g", dr, dr)
-            )
-            self.lower -= shift[pairs.index[:, 0]] + shift[pairs.index[:, 1]]
+        if self.pos is not None and self.mat is not None:
+            self.lower -= pair_shift(pairs, self.pos, self.mat, pos, mat)
         self.pos, self.mat = pos, mat
         return self.lower
+
+
+def pair_shift(
+    pairs: CollisionPairs, pos: np.ndarray, mat: np.ndarray, new_pos: np.ndarray, new_mat: np.ndarray
+) -> np.ndarray:
+    """(p,) a bound on how much each pair's distance changed, m, between the geom poses ``pos``,
+    ``mat`` and ``new_pos``, ``new_mat`` ((g, 3), (g, 9), the pairs' geoms): the farthest any point
+    of each geom moved, its centre's displacement plus its bounding radius times the change of its
+    rotation matrix (a bound on the spectral norm), summed over the pair."""
+    dx, dr = new_pos - pos, new_mat - mat
+    shift = np.sqrt(np.einsum("gi,gi->g", dx, dx)) + pairs.rbound * np.sqrt(np.einsum("gi,gi->g", dr, dr))
+    return shift[pairs.index[:, 0]] + shift[pairs.index[:, 1]]
 
 
 def pair_distances(
@@ -102,7 +110,21 @@ def pair_distances(
     distmax: float,
     bounds: DistanceBounds | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Signed distances (k,) of the pairs closer than ``distmax`` (m), and their gradients (k, n).
+    """Signed distances (k,) of the pairs closer than ``distmax`` (m), and their gradients (k, n):
+    :func:`near_pairs` without the pairs' indices."""
+    _, dist, grad = near_pairs(robot, data, pairs, distmax, bounds)
+    return dist, grad
+
+
+def near_pairs(
+    robot: Robot,
+    data: mujoco.MjData,
+    pairs: CollisionPairs,
+    distmax: float | np.ndarray,
+    bounds: DistanceBounds | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The pairs closer than ``distmax`` (m; one for all, or (p,) one per pair): their indices (k,)
+    into ``pairs``, signed distances (k,) and the distances' gradients (k, n).
 
     ``data`` must hold the configuration's kinematics (``mj_kinematics`` and ``mj_comPos``). The
     gradient of the distance between the nearest points p1 (on geom 1) and p2 is
@@ -111,8 +133,9 @@ def pair_distances(
     """
     m = robot.model
     if len(pairs) == 0:
-        return np.zeros(0), np.zeros((0, robot.dof))
+        return np.zeros(0, dtype=int), np.zeros(0), np.zeros((0, robot.dof))
     pos, mat = data.geom_xpos[pairs.unique], data.geom_xmat[pairs.unique]
+    distmax = np.broadcast_to(np.asarray(distmax, dtype=float), (len(pairs),))
     if bounds is not None:
         # the carried bounds are the broad phase: few pairs come closer than the last query said
         near = np.flatnonzero(bounds.update(pos, mat, pairs) < distmax)
@@ -129,21 +152,21 @@ def pair_distances(
     dist = np.empty(len(near))
     fromto = np.empty((len(near), 6))
     for k, (g1, g2) in enumerate(pairs.geoms[near].tolist()):
-        dist[k] = mujoco.mj_geomDistance(m, data, g1, g2, horizon, fromto[k])
+        dist[k] = mujoco.mj_geomDistance(m, data, g1, g2, horizon[near[k]], fromto[k])
     if bounds is not None:
         bounds.lower[near] = dist
     v = fromto[:, 3:] - fromto[:, :3]
     length = np.sqrt(np.einsum("ki,ki->k", v, v))
-    hit = np.flatnonzero((dist < distmax) & (length > 1e-12))  # touching at a point: no direction
+    hit = np.flatnonzero((dist < distmax[near]) & (length > 1e-12))  # touching at a point: no direction
     if len(hit) == 0:
-        return np.zeros(0), np.zeros((0, robot.dof))
+        return np.zeros(0, dtype=int), np.zeros(0), np.zeros((0, robot.dof))
     normal = v[hit] * (np.where(dist[hit] >= 0, 1.0, -1.0) / length[hit])[:, None]
     jac = np.empty((len(hit), 2, 3, m.nv))
     points = fromto[hit].reshape(-1, 2, 3)
     for k, (b1, b2) in enumerate(pairs.bodies[near[hit]].tolist()):
         mujoco.mj_jac(m, data, jac[k, 0], None, points[k, 0], b1)
         mujoco.mj_jac(m, data, jac[k, 1], None, points[k, 1], b2)
-    return dist[hit], np.einsum("kj,kjn->kn", normal, jac[:, 1] - jac[:, 0])
+    return near[hit], dist[hit], np.einsum("kj,kjn->kn", normal, jac[:, 1] - jac[:, 0])
 
 
 def velocity_damper(
@@ -151,15 +174,20 @@ def velocity_damper(
     data: mujoco.MjData,
     pairs: CollisionPairs,
     margin: float,
-    detect: float,
+    detect: float | np.ndarray,
     gain: float,
     bounds: DistanceBounds | None = None,
+    floors: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Rows (k, n) and bounds (k,) a step dq must meet, ``rows @ dq <= rhs``, to keep the pairs
-    closer than ``detect`` at least ``margin`` apart (m): each may approach by at most ``gain`` of
-    its distance to the margin, ``d + grad dq >= margin - (1 - gain)(d - margin)`` (mink's velocity
-    damper). ``data`` must hold the kinematics of the configuration (``mj_kinematics``);
-    ``bounds`` as in :func:`pair_distances`."""
+    closer than ``detect`` (m; or (p,), per pair) at least ``margin`` apart: each may approach
+    by at most ``gain`` of its distance to the margin, ``d + grad dq >= margin - (1 - gain)(d -
+    margin)`` (mink's velocity damper), and come no closer than its entry of ``floors`` (p,), m,
+    if given (a frame's braking distances). ``data`` must hold the kinematics of the
+    configuration (``mj_kinematics``); ``bounds`` as in :func:`pair_distances`."""
     mujoco.mj_comPos(robot.model, data)
-    dist, grad = pair_distances(robot, data, pairs, detect, bounds)
-    return -grad, gain * (dist - margin)
+    index, dist, grad = near_pairs(robot, data, pairs, detect, bounds)
+    rhs = gain * (dist - margin)
+    if floors is not None:
+        rhs = np.minimum(rhs, dist - floors[index])
+    return -grad, rhs

@@ -22,7 +22,7 @@ from hlik.criteria.base import Sample
 from hlik.problem.problem import Problem
 from hlik.problem.reference import HumanReference, reference_sample
 from hlik.problem.targets import HandTargets
-from hlik.robot.collision import CollisionPairs, DistanceBounds, velocity_damper
+from hlik.robot.collision import CollisionPairs, DistanceBounds, near_pairs, pair_shift, velocity_damper
 from hlik.robot.model import Robot
 from hlik.solvers.base import Diagnostics, SolverResult
 from hlik.solvers.limits import JointBox as JointBox  # re-exported: the solvers' frame box
@@ -100,7 +100,6 @@ def iterate(
     max_iter: int,
     tol: float,
     damp_reversals: bool = False,
-    outer: bool = False,
 ) -> FrameResult:
     """Repeat ``q <- clip(q + step(q))`` into ``box`` until no joint moves more than ``tol``
     (converged) or ``max_iter`` steps (the paper's stopping rule for JV).
@@ -109,9 +108,6 @@ def iterate(
     scale of this and every later step. A Gauss-Newton step can flip a joint between the ends of
     its speed box where the linearisation is poor (ARMAR-III's elbow near a stretched arm: the same
     +-0.01 rad step every iteration until the cap); halving settles it between them.
-
-    ``outer``: clip into ``box.outer`` instead, for a ``step`` that keeps ``box`` itself but may
-    step into its relaxed box to keep the robot out of itself (the QP).
     """
     steps, converged, scale = 0, False, 1.0
     q = box.clip(q)
@@ -123,7 +119,7 @@ def iterate(
             if dot < -0.5 * np.linalg.norm(delta) * np.linalg.norm(previous):
                 scale *= 0.5
         previous = delta
-        new = (box.outer if outer else box).clip(q + scale * delta)
+        new = box.clip(q + scale * delta)
         moved, q, steps = np.max(np.abs(new - q)), new, steps + 1
         if moved < tol:
             converged = True
@@ -132,31 +128,77 @@ def iterate(
 
 
 def constrained_steps(
-    box: JointBox, q: np.ndarray, max_step: float, a_col: np.ndarray, b_col: np.ndarray
+    box: JointBox,
+    q: np.ndarray,
+    max_step: float,
+    a_col: np.ndarray,
+    b_col: np.ndarray,
 ) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]:
-    """What a step ``dq`` from ``q`` (n,) tries to keep, in order, each as step bounds (n,) twice
-    and rows ``a @ dq <= b``: (1) every row, the box's (torque) and the collision rows ``a_col``,
-    ``b_col`` (k, n), (k,), inside ``box``; where no step meets them, (2) the collision rows alone
-    inside ``box.relaxed`` (self-collision outranks the acceleration and torque limits), then (3)
-    relaxed to "come no closer"; last (4) every row relaxed to "no worse" inside ``box``. The QP and
-    JV take the first their solver can meet."""
+    """What a step ``dq`` from ``q`` (n,) inside ``box`` tries to keep, in order, each as step
+    bounds (n,) twice and rows ``a @ dq <= b``: (1) every row, the box's (torque) and the
+    collision rows ``a_col``, ``b_col`` (k, n), (k,) (:func:`collision_rows`); where no step meets
+    them, (2) each collision row relaxed to the most the box can do for it alone (a pair the box
+    cannot pull back to its floor in time brakes, or backs out of the margin, as hard as the
+    limits allow); last (3) every row relaxed to "no worse" (``dq = 0`` meets it). The QP and JV
+    take the first their solver can meet. The box itself always holds: an acceleration limit
+    given up for the margin was a jump of 40 times the limit, for a miss of the margin by 0.1 mm."""
     lower, upper = box.step_bounds(q, max_step)
     a_box, b_box = box.step_rows(q)
     a, b = np.vstack([a_box, a_col]), np.concatenate([b_box, b_col])
     tries = [(lower, upper, a, b)]
-    if len(b_col) and box.relaxed is not None:
-        lower_r, upper_r = box.relaxed.step_bounds(q, max_step)
-        tries += [(lower_r, upper_r, a_col, b_col), (lower_r, upper_r, a_col, np.maximum(b_col, 0.0))]
+    if len(b_col):
+        reach = np.sum(np.minimum(a_col * lower, a_col * upper), axis=1)  # min of a_col @ dq in the box
+        tries.append((lower, upper, a, np.concatenate([b_box, np.maximum(b_col, reach)])))
     if len(b):
         tries.append((lower, upper, a, np.maximum(b, 0.0)))
     return tries
 
 
 def collision_rows(
-    robot: Robot, data: mujoco.MjData, pairs: CollisionPairs, bounds: DistanceBounds | None, settings
+    robot: Robot,
+    data: mujoco.MjData,
+    pairs: CollisionPairs,
+    bounds: DistanceBounds | None,
+    settings,
+    floors: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """The velocity-damper rows (k, n) and bounds (k,) of ``settings``' ``collision_margin``,
     ``collision_detect`` and ``collision_gain`` (the QP's and JV's), for the configuration whose
-    kinematics ``data`` holds; ``bounds`` carried across steps."""
-    margin, detect, gain = settings.collision_margin, settings.collision_detect, settings.collision_gain
-    return velocity_damper(robot, data, pairs, margin, detect, gain, bounds)
+    kinematics ``data`` holds, no pair closer than its floor and each looked for as far as
+    ``floors`` say (:func:`collision_floors`); ``bounds`` carried across steps."""
+    margin, gain = settings.collision_margin, settings.collision_gain
+    if floors is None:
+        return velocity_damper(robot, data, pairs, margin, settings.collision_detect, gain, bounds)
+    return velocity_damper(robot, data, pairs, margin, floors[1], gain, bounds, floors[0])
+
+
+def collision_floors(
+    robot: Robot,
+    data: mujoco.MjData,
+    pairs: CollisionPairs | None,
+    box: JointBox,
+    settings,
+    bounds: DistanceBounds | None = None,
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """Each pair's least distance, m, in the frame of ``box`` (:meth:`Braking.floors
+    <hlik.solvers.limits.Braking.floors>` at the frame's start; ``-inf`` for the pairs not near)
+    and how far to look for it, m (:meth:`~hlik.solvers.limits.Braking.horizon` of how fast it
+    closed in the last frame): (p,) each, so that the solvers brake before the collision margin
+    instead of stopping at it (the damper alone let hands closing at 1 m/s stop within a frame,
+    and saw a pair only within ``collision_detect``, inside its braking distance). None without
+    braking. Overwrites ``data``'s kinematics."""
+    if pairs is None or not len(pairs) or box.braking is None:
+        return None
+    braking, model = box.braking, robot.model
+    data.qpos[:] = braking.before
+    mujoco.mj_kinematics(model, data)
+    before = data.geom_xpos[pairs.unique].copy(), data.geom_xmat[pairs.unique].copy()
+    data.qpos[:] = braking.previous
+    mujoco.mj_kinematics(model, data)
+    mujoco.mj_comPos(model, data)
+    closing = pair_shift(pairs, *before, data.geom_xpos[pairs.unique], data.geom_xmat[pairs.unique])
+    horizon = braking.horizon(closing, settings.collision_margin, settings.collision_detect)
+    index, dist, grad = near_pairs(robot, data, pairs, horizon, bounds)
+    floors = np.full(len(pairs), -np.inf)
+    floors[index] = braking.floors(dist, grad, settings.collision_margin)
+    return floors, horizon

@@ -37,6 +37,46 @@ from hlik.robot.model import Robot
 # 3 deg: a controller's usual software margin, and ARMAR-III's smallest range (Wrist 1, 53 deg) keeps
 # nine tenths of its travel
 STOP_MARGIN = math.radians(3.0)
+# the share of the deceleration the acceleration limits could give a distance (|grad| @ a_max) that
+# braking before a collision margin counts on: the rest is left to the other rows (stops, torques)
+# and to the pair's normal turning as it closes
+BRAKING_SHARE = 0.5
+# the deceleration, m/s^2, a pair closing fast is assumed to brake at when deciding how far ahead to
+# look for it: below what the bundled arms give a hand pair at the braking share (2-Panda ~5,
+# ARMAR-6 ~15), so that it is found before its braking distance
+HORIZON_DECELERATION = 2.0
+
+
+@dataclass(frozen=True, eq=False)
+class Braking:
+    """How far a distance between two bodies may close in a frame so that it can still stop at its
+    margin: the frame's start ``previous`` (n,) (q_t-1, rad) and the frame before it ``before``
+    (q_t-2), the joints' ``acceleration`` limits (n,), rad/s^2, and the frame's ``dt``, s."""
+
+    previous: np.ndarray
+    before: np.ndarray
+    acceleration: np.ndarray
+    dt: float
+
+    def horizon(self, closing: np.ndarray, margin: float, detect: float) -> np.ndarray:
+        """(p,) how far, m, to look for each pair closing by at most ``closing`` (p,), m, in the
+        last frame: ``detect``, or farther for a fast pair, its braking distance at
+        :data:`HORIZON_DECELERATION` and two frames' travel beyond the margin."""
+        speed = closing / self.dt
+        return np.maximum(detect, margin + 2.0 * closing + speed * speed / (2.0 * HORIZON_DECELERATION))
+
+    def floors(self, distance: np.ndarray, gradient: np.ndarray, margin: float) -> np.ndarray:
+        """The least distance (k,), m, that each of k distances (k,) at :attr:`previous`, with
+        gradients (k, n) there, may reach at the end of the frame: the approach from which it can
+        still stop at ``margin`` decelerating at :data:`BRAKING_SHARE` of ``|gradient| @ a_max``
+        (v^2 <= 2 a (d - margin), as the joints brake before their stops). ``-inf`` for a
+        distance moved by a joint without an acceleration limit. Less 0.1 mm: a distance no joint
+        changes (coaxial capsules) would else be held to itself within rounding, infeasibly."""
+        grad = np.abs(gradient)
+        finite = np.isfinite(self.acceleration)
+        deceleration = BRAKING_SHARE * (grad @ np.where(finite, self.acceleration, 0.0))
+        deceleration[grad @ ~finite > 0] = np.inf
+        return distance - self.dt * braking_speed(distance - margin, deceleration, self.dt) - 1e-4
 
 
 @dataclass(frozen=True, eq=False)
@@ -44,23 +84,15 @@ class JointBox:
     """Bounds (n,) each on a frame's configuration, rad (infinite for unlimited joints), and
     optional linear rows on it, ``rows @ q <= bound`` ((k, n), (k,); the torque limits).
 
-    ``relaxed``: the stops and speed limits alone. Self-collision avoidance outranks the
-    acceleration and torque limits: where no step inside this box keeps the collision geoms apart
-    (an arm coasting toward the torso faster than it can brake), a solver steps inside ``relaxed``
-    instead, and the summary reports the acceleration it took.
+    ``braking``: how far the frame's distances between bodies may close, so that the solvers
+    brake before the collision margin as before the stops (None without acceleration limits).
     """
 
     lower: np.ndarray
     upper: np.ndarray
     rows: np.ndarray | None = None
     bound: np.ndarray | None = None
-    relaxed: JointBox | None = None
-
-    @property
-    def outer(self) -> JointBox:
-        """The box a step may fall back to where this one leaves no room to keep the robot out
-        of itself (:attr:`relaxed`: the stops and the speed limits only), else this one."""
-        return self.relaxed or self
+    braking: Braking | None = None
 
     def step_rows(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The rows as bounds on a step ``dq`` from ``q``: (k, n), (k,) (k = 0 without rows)."""
@@ -156,22 +188,23 @@ class MotionLimits:
         with np.errstate(invalid="ignore"):
             change = np.where(np.isfinite(a), a * dt * dt, np.inf)
             coast = q1 + v1 * dt
-        relaxed = JointBox(np.maximum(self.lower, q1 - reach), np.minimum(self.upper, q1 + reach))
-        hard_lo = np.maximum(relaxed.lower, coast - change)
-        hard_hi = np.minimum(relaxed.upper, coast + change)
+        speed_lo, speed_hi = np.maximum(self.lower, q1 - reach), np.minimum(self.upper, q1 + reach)
+        hard_lo = np.maximum(speed_lo, coast - change)
+        hard_hi = np.minimum(speed_hi, coast + change)
         # a state outside the hard box (a start beyond a stop) keeps at least the speed box
         bad = hard_lo > hard_hi
-        hard_lo = np.where(bad, relaxed.lower, hard_lo)
-        hard_hi = np.where(bad, relaxed.upper, hard_hi)
+        hard_lo = np.where(bad, speed_lo, hard_lo)
+        hard_hi = np.where(bad, speed_hi, hard_hi)
         # inside the margin: brake before it; in it (a start on a stop): back out of it
         soft_hi = np.minimum(q1 + dt * braking_speed(self.inner_upper - q1, a, dt), self.inner_upper)
         soft_lo = np.maximum(q1 - dt * braking_speed(q1 - self.inner_lower, a, dt), self.inner_lower)
         lower = np.minimum(np.maximum(soft_lo, hard_lo), hard_hi)
         upper = np.maximum(np.minimum(np.maximum(soft_hi, hard_lo), hard_hi), lower)
+        braking = Braking(q1, q2, a, dt) if np.any(np.isfinite(a)) else None
         if not self.has_torque:
-            return JointBox(lower, upper, relaxed=relaxed)
+            return JointBox(lower, upper, braking=braking)
         rows, bound = self.torque_rows(q1, q2, dt, data)
-        return JointBox(lower, upper, rows, bound, relaxed)
+        return JointBox(lower, upper, rows, bound, braking)
 
     def torque_rows(
         self, q1: np.ndarray, q2: np.ndarray, dt: float, data: mujoco.MjData | None = None

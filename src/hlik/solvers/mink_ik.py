@@ -70,9 +70,7 @@ class MinkSolver:
                     task.set_sample(sample)
             steps = self.iterations * (10 if k == 0 else 1)
             for _ in range(steps):
-                v = mink.solve_ik(
-                    config, self.tasks, sample.dt, self.solver, self.damping, limits=limits
-                )
+                v = mink.solve_ik(config, self.tasks, sample.dt, self.solver, self.damping, limits=limits)
                 config.integrate_inplace(v, sample.dt)
             return FrameResult(box.clip(config.q), steps)
 

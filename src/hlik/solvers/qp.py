@@ -30,7 +30,15 @@ from hlik.robot.collision import CollisionPairs, DistanceBounds, collision_pairs
 from hlik.robot.model import Robot
 from hlik.robot.state import robot_state
 from hlik.solvers.base import ConfiguredSolver, SolverResult, check_settings
-from hlik.solvers.frames import FrameResult, JointBox, collision_rows, constrained_steps, iterate, track
+from hlik.solvers.frames import (
+    FrameResult,
+    JointBox,
+    collision_floors,
+    collision_rows,
+    constrained_steps,
+    iterate,
+    track,
+)
 from hlik.solvers.limits import LimitSettings, MotionLimits
 
 # HJA_r's Table II gamma (2) doubled for the QP: beside SYN (gamma 6) it barely acted, and SYN +
@@ -184,10 +192,11 @@ def step(
     box: JointBox | None = None,
     pairs: CollisionPairs | None = None,
     bounds: DistanceBounds | None = None,
+    floors: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> np.ndarray:
     """One QP step from ``q`` (n,) within ``box`` (default: the joint limits), keeping the collision
-    ``pairs`` apart: the joint change dq (n,). Reuse ``data`` and the pairs' distance ``bounds``
-    across steps."""
+    ``pairs`` apart (none closer than its ``floors``, :func:`~hlik.solvers.frames.collision_floors`):
+    the joint change dq (n,). Reuse ``data`` and the pairs' distance ``bounds`` across steps."""
     data = mujoco.MjData(robot.model) if data is None else data
     state = robot_state(robot, q, jacobians=bool(stack.sites), data=data, jacobian_sites=stack.sites)
     gradient = np.zeros(robot.dof)
@@ -207,7 +216,7 @@ def step(
     box = box or JointBox(robot.lower, robot.upper)
     a_col, b_col = np.zeros((0, robot.dof)), np.zeros(0)
     if pairs is not None and len(pairs):
-        a_col, b_col = collision_rows(robot, data, pairs, bounds, settings)  # q's kinematics in data
+        a_col, b_col = collision_rows(robot, data, pairs, bounds, settings, floors)  # q's kinematics in data
     dq = None
     for lower, upper, a, b in constrained_steps(box, q, settings.max_step, a_col, b_col):
         dq = solve_qp(hessian, gradient, lower, upper, settings.solver, a, b)
@@ -254,14 +263,14 @@ def solve(
     def solve_frame(k: int, frame: Sample, q: np.ndarray, box: JointBox) -> FrameResult:
         stack = first if k == 0 else terms
         max_iter = settings.max_iter * (10 if k == 0 else 1)
+        floors = collision_floors(robot, data, pairs, box, settings, bounds)
         return iterate(
-            lambda x: step(robot, stack, x, frame, settings, data, box, pairs, bounds),
+            lambda x: step(robot, stack, x, frame, settings, data, box, pairs, bounds, floors),
             q,
             box,
             max_iter,
             settings.tol,
             damp_reversals=True,
-            outer=True,
         )
 
     return track(problem, solve_frame, progress, MotionLimits.of(robot, settings))

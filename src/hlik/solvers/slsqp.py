@@ -42,11 +42,11 @@ from hlik.criteria.learned import Learned, learn
 from hlik.criteria.smoothness import ACCELERATION, JERK, VELOCITY, Smoothness
 from hlik.errors import SettingsError
 from hlik.problem.problem import Problem
-from hlik.robot.collision import CollisionPairs, DistanceBounds, collision_pairs, pair_distances
+from hlik.robot.collision import CollisionPairs, DistanceBounds, collision_pairs, near_pairs
 from hlik.robot.model import Robot
 from hlik.robot.state import robot_state
 from hlik.solvers.base import ConfiguredSolver, SolverResult, check_settings
-from hlik.solvers.frames import FrameResult, JointBox, track
+from hlik.solvers.frames import FrameResult, JointBox, collision_floors, track
 from hlik.solvers.limits import LimitSettings, MotionLimits
 
 # Sec. IV-A's gamma_p = 10 for the TCP position. The relative position (m, like fPOS) gets it too:
@@ -526,35 +526,45 @@ def make_optimizer(robot: Robot, settings: SLSQPSettings) -> nlopt.opt:
 
 
 class CollisionConstraint:
-    """NLopt's ``margin - d_i(q) <= 0`` for the k closest collision pairs (fewer: padded, met), in
-    the variables of :attr:`chart` when it is set."""
+    """NLopt's ``floor_i - d_i(q) <= 0`` for the k collision pairs nearest their floors (fewer:
+    padded, met), in the variables of :attr:`chart` when it is set. A pair's floor is the margin,
+    or the frame's braking distance where that is larger (:meth:`brake`)."""
 
     def __init__(self, robot: Robot, pairs: CollisionPairs, settings: SLSQPSettings):
         self.robot, self.pairs, self.settings = robot, pairs, settings
         self.data = mujoco.MjData(robot.model)
         self.bounds = DistanceBounds(pairs)
         self.chart: Chart | None = None
+        self.floors = np.full(len(pairs), settings.collision_margin)
+        self.detect: float | np.ndarray = settings.collision_detect
 
-    def distances(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Signed distances (k,) and their gradients (k, n) of the pairs closer than
-        ``collision_detect`` at ``q`` (n,)."""
+    def distances(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The pairs closer than ``collision_detect`` at ``q`` (n,): indices (k,), signed
+        distances (k,) and their gradients (k, n)."""
         m = self.robot.model
         self.data.qpos[:] = q
         mujoco.mj_kinematics(m, self.data)
         mujoco.mj_comPos(m, self.data)
-        return pair_distances(self.robot, self.data, self.pairs, self.settings.collision_detect, self.bounds)
+        return near_pairs(self.robot, self.data, self.pairs, self.detect, self.bounds)
 
-    def too_close(self, q: np.ndarray) -> bool:
-        """Whether a pair is closer than the margin at ``q`` (n,), beyond NLopt's tolerance."""
-        dist, _ = self.distances(q)
-        return bool(np.any(dist < self.settings.collision_margin - COLLISION_TOLERANCE))
+    def brake(self, box: JointBox) -> None:
+        """Set the floors for the frame of ``box``: the margin, raised to the braking distance of
+        the pairs near at its start, each looked for as far as it needs
+        (:func:`hlik.solvers.frames.collision_floors`)."""
+        margin = self.settings.collision_margin
+        found = collision_floors(self.robot, self.data, self.pairs, box, self.settings, self.bounds)
+        if found is None:
+            self.floors, self.detect = np.full(len(self.pairs), margin), self.settings.collision_detect
+        else:
+            self.floors, self.detect = np.maximum(margin, found[0]), found[1]
 
     def __call__(self, result: np.ndarray, x: np.ndarray, grad: np.ndarray) -> None:
         s = self.settings
-        dist, jac = self.distances(x if self.chart is None else self.chart.q(x))
-        order = np.argsort(dist)[: s.collision_pairs]
+        index, dist, jac = self.distances(x if self.chart is None else self.chart.q(x))
+        slack = self.floors[index] - dist
+        order = np.argsort(-slack)[: s.collision_pairs]
         result[:] = s.collision_margin - s.collision_detect  # absent pairs: far, met
-        result[: len(order)] = s.collision_margin - dist[order]
+        result[: len(order)] = slack[order]
         if grad.size:
             grad[:] = 0.0
             grad[: len(order)] = -jac[order] if self.chart is None else -jac[order] @ self.chart.T
@@ -663,14 +673,10 @@ def solve(
     def solve_frame_k(k: int, frame: Sample, q: np.ndarray, box: JointBox) -> FrameResult:
         obj, max_eval = (first, settings.first_eval) if k == 0 else (objective, settings.max_eval)
         start = q
+        if collision is not None:
+            collision.brake(box)
         q, status[k] = solve_frame(opt, obj, frame, box.clip(start), max_eval, box, collision)
         evaluations = obj.evaluations
-        if status[k] < 0 and collision is not None and box.relaxed is not None and collision.too_close(q):
-            # no room within the acceleration and torque limits to keep the body apart: the
-            # collision constraints win
-            box = box.relaxed
-            q, status[k] = solve_frame(opt, obj, frame, box.clip(start), max_eval, box, collision)
-            evaluations += obj.evaluations
         converged = status[k] > 0 and status[k] != nlopt.MAXEVAL_REACHED
         return FrameResult(box.clip(q), evaluations, converged, status[k] < 0)
 
