@@ -16,7 +16,9 @@ frames with a hand more than 5 cm off, ``fORI`` the median hand orientation erro
 approach ``solver@stack+...`` takes its weights from that stack (``slsqp@paper_opt``).
 
 Run by hand: ``python bench/quality.py [--robots armar3,armar6] [--approaches qp,qp+SYN]
-[--set criterion_cost=0.1]`` (``--set`` overrides a field of the solvers' settings).
+[--set criterion_cost=0.1]`` (``--set`` overrides a field of the solvers' settings; ``--set
+acceleration_limits=false --set torque_limits=false --set stop_margin=0`` gives the solvers
+without the limits of ``solvers/limits.py``, for their cost).
 """
 
 from __future__ import annotations
@@ -42,6 +44,13 @@ from hlik.solvers.stack_file import load_stack
 
 DATA = Path(os.environ.get("HLIK_DATA", Path(__file__).resolve().parents[2] / "shared" / "motion_data"))
 DEFAULT = "jm,jv,qp,qp+SYN,qp+HJA_r,slsqp,slsqp+SYN,slsqp+HJA_r"
+
+
+def _setting(text: str) -> bool | int | float:
+    """A ``--set`` value: true/false, an integer or a float."""
+    if text.lower() in ("true", "false"):
+        return text.lower() == "true"
+    return int(text) if text.isdigit() else float(text)
 
 
 def reachable(robot: hlik.Robot, traj: hlik.Trajectory) -> np.ndarray:
@@ -135,7 +144,7 @@ def main() -> None:
     parser.add_argument("--takes", type=int, default=8, help="use the first N takes")
     parser.add_argument("--set", action="append", default=[], help="override a setting: name=value")
     args = parser.parse_args()
-    overrides = {k: int(v) if v.isdigit() else float(v) for k, v in (item.split("=", 1) for item in args.set)}
+    overrides = {k: _setting(v) for k, v in (item.split("=", 1) for item in args.set)}
     takes = sorted((DATA / "kit_bimanual").glob("*.xml"))[: args.takes]
     if not takes:
         raise SystemExit(f"{DATA / 'kit_bimanual'}: no takes (set HLIK_DATA)")

@@ -139,7 +139,8 @@ def constrained_steps(
     collision rows ``a_col``, ``b_col`` (k, n), (k,) (:func:`collision_rows`); where no step meets
     them, (2) each collision row relaxed to the most the box can do for it alone (a pair the box
     cannot pull back to its floor in time brakes, or backs out of the margin, as hard as the
-    limits allow); last (3) every row relaxed to "no worse" (``dq = 0`` meets it). The QP and JV
+    limits allow), then (3) with the torque rows relaxed to "no worse" (the body before the
+    torque); last (4) every row relaxed to "no worse" (``dq = 0`` meets it). The QP and JV
     take the first their solver can meet. The box itself always holds: an acceleration limit
     given up for the margin was a jump of 40 times the limit, for a miss of the margin by 0.1 mm."""
     lower, upper = box.step_bounds(q, max_step)
@@ -148,7 +149,10 @@ def constrained_steps(
     tries = [(lower, upper, a, b)]
     if len(b_col):
         reach = np.sum(np.minimum(a_col * lower, a_col * upper), axis=1)  # min of a_col @ dq in the box
-        tries.append((lower, upper, a, np.concatenate([b_box, np.maximum(b_col, reach)])))
+        relaxed = np.maximum(b_col, reach)
+        tries.append((lower, upper, a, np.concatenate([b_box, relaxed])))
+        if len(b_box):
+            tries.append((lower, upper, a, np.concatenate([np.maximum(b_box, 0.0), relaxed])))
     if len(b):
         tries.append((lower, upper, a, np.maximum(b, 0.0)))
     return tries

@@ -200,17 +200,23 @@ class MotionLimits:
         soft_lo = np.maximum(q1 - dt * braking_speed(q1 - self.inner_lower, a, dt), self.inner_lower)
         lower = np.minimum(np.maximum(soft_lo, hard_lo), hard_hi)
         upper = np.maximum(np.minimum(np.maximum(soft_hi, hard_lo), hard_hi), lower)
-        braking = Braking(q1, q2, a, dt) if np.any(np.isfinite(a)) else None
         if not self.has_torque:
+            braking = Braking(q1, q2, a, dt) if np.any(np.isfinite(a)) else None
             return JointBox(lower, upper, braking=braking)
-        rows, bound = self.torque_rows(q1, q2, dt, data)
+        rows, bound, available = self.torque_rows(q1, q2, dt, data)
+        # bodies brake at what the joints can give within their efforts too: the G1's 25 N m
+        # shoulders reach far less than their 40 rad/s^2 with the arm out
+        braking = Braking(q1, q2, np.minimum(a, available), dt)
         return JointBox(lower, upper, rows, bound, braking)
 
     def torque_rows(
         self, q1: np.ndarray, q2: np.ndarray, dt: float, data: mujoco.MjData | None = None
-    ) -> tuple[np.ndarray, np.ndarray]:
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Rows (2k, n) and bounds (2k,), ``rows @ q_t <= bound``: the torques of the k joints with
-        an effort limit, at q1 with the acceleration ``(q_t - 2 q1 + q2) / dt^2``, within it."""
+        an effort limit, at q1 with the acceleration ``(q_t - 2 q1 + q2) / dt^2``, within it; and
+        (n,) the acceleration each joint has alone within its effort, rad/s^2 (what is left of
+        the effort beside gravity and Coriolis, over the joint's own inertia; ``inf`` without an
+        effort limit)."""
         model = self.robot.model
         data = mujoco.MjData(model) if data is None else data
         data.qpos[:], data.qvel[:] = q1, (q1 - q2) / dt
@@ -224,7 +230,10 @@ class MotionLimits:
         m = inertia[idx] / (dt * dt)
         offset = data.qfrc_bias[idx] - m @ (2.0 * q1 - q2)  # tau = m q_t + offset
         effort = self.effort[idx]
-        return np.vstack([m, -m]), np.concatenate([effort - offset, effort + offset])
+        available = np.full(len(q1), np.inf)
+        spare = np.maximum(effort - np.abs(data.qfrc_bias[idx]), 0.0)
+        available[idx] = spare / np.maximum(np.diag(inertia)[idx], 1e-9)
+        return np.vstack([m, -m]), np.concatenate([effort - offset, effort + offset]), available
 
 
 def braking_speed(distance: np.ndarray, acceleration: np.ndarray, dt: float) -> np.ndarray:
