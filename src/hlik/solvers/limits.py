@@ -200,13 +200,14 @@ class MotionLimits:
         soft_lo = np.maximum(q1 - dt * braking_speed(q1 - self.inner_lower, a, dt), self.inner_lower)
         lower = np.minimum(np.maximum(soft_lo, hard_lo), hard_hi)
         upper = np.maximum(np.minimum(np.maximum(soft_hi, hard_lo), hard_hi), lower)
-        if not self.has_torque:
-            braking = Braking(q1, q2, a, dt) if np.any(np.isfinite(a)) else None
-            return JointBox(lower, upper, braking=braking)
-        rows, bound, available = self.torque_rows(q1, q2, dt, data)
-        # bodies brake at what the joints can give within their efforts too: the G1's 25 N m
-        # shoulders reach far less than their 40 rad/s^2 with the arm out
-        braking = Braking(q1, q2, np.minimum(a, available), dt)
+        rows = bound = None
+        available = a
+        if self.has_torque:
+            rows, bound, spare = self.torque_rows(q1, q2, dt, data)
+            # bodies brake at what the joints can give within their efforts too: the G1's 25 N m
+            # shoulders reach far less than their 40 rad/s^2 with the arm out
+            available = np.minimum(a, spare)
+        braking = Braking(q1, q2, available, dt) if np.any(np.isfinite(available)) else None
         return JointBox(lower, upper, rows, bound, braking)
 
     def torque_rows(

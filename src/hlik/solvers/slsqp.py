@@ -539,8 +539,9 @@ class CollisionConstraint:
         self.detect: float | np.ndarray = settings.collision_detect
 
     def distances(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The pairs closer than ``collision_detect`` at ``q`` (n,): indices (k,), signed
-        distances (k,) and their gradients (k, n)."""
+        """The pairs closer than :attr:`detect` at ``q`` (n,) (``collision_detect``, or per pair
+        as far as :meth:`brake` looks): indices (k,), signed distances (k,) and their gradients
+        (k, n)."""
         m = self.robot.model
         self.data.qpos[:] = q
         mujoco.mj_kinematics(m, self.data)
@@ -672,13 +673,11 @@ def solve(
 
     def solve_frame_k(k: int, frame: Sample, q: np.ndarray, box: JointBox) -> FrameResult:
         obj, max_eval = (first, settings.first_eval) if k == 0 else (objective, settings.max_eval)
-        start = q
         if collision is not None:
             collision.brake(box)
-        q, status[k] = solve_frame(opt, obj, frame, box.clip(start), max_eval, box, collision)
-        evaluations = obj.evaluations
+        q, status[k] = solve_frame(opt, obj, frame, box.clip(q), max_eval, box, collision)
         converged = status[k] > 0 and status[k] != nlopt.MAXEVAL_REACHED
-        return FrameResult(box.clip(q), evaluations, converged, status[k] < 0)
+        return FrameResult(box.clip(q), obj.evaluations, converged, status[k] < 0)
 
     result = track(problem, solve_frame_k, progress, MotionLimits.of(robot, settings))
     return replace(result, info=MappingProxyType({"status": status}))
