@@ -1,10 +1,14 @@
-"""The shared frame loop's iteration: convergence and the damping of flip-flopping steps."""
+"""The shared frame loop: its iteration (convergence, the damping of flip-flopping steps) and the
+constrained steps a frame falls back on."""
 
 from __future__ import annotations
 
 import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
-from hlik.solvers.frames import JointBox, iterate
+from hlik.solvers.frames import COLLISION_PENALTY, JointBox, constrained_steps, iterate
+from hlik.solvers.qp import solve_qp
 
 
 def test_a_step_that_flips_back_and_forth_is_damped_to_the_fixed_point():
@@ -28,3 +32,35 @@ def test_damping_leaves_a_monotone_iteration_alone():
     damped = iterate(newton, np.zeros(3), box, max_iter=100, tol=1e-8, damp_reversals=True)
     assert plain.iterations == damped.iterations
     np.testing.assert_array_equal(plain.q, damped.q)
+
+
+def test_soft_rows_are_missed_as_little_as_the_bounds_allow():
+    """Rows no step can meet (x0 <= -1 and x0 >= 1) are missed equally at equal penalties; a
+    feasible row is kept as if it were hard, to the penalty's precision."""
+    hessian, gradient = np.eye(2), np.array([0.0, -1.0])
+    lower, upper = np.full(2, -2.0), np.full(2, 2.0)
+    rows, bound = np.array([[1.0, 0.0], [-1.0, 0.0], [0.0, 1.0]]), np.array([-1.0, -1.0, 0.5])
+    assert solve_qp(hessian, gradient, lower, upper, "daqp", rows, bound) is None
+    x = solve_qp(hessian, gradient, lower, upper, "daqp", rows, bound, np.full(3, COLLISION_PENALTY))
+    np.testing.assert_allclose(x, [0.0, 0.5], atol=1e-5)
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.integers(0, 2**31 - 1))
+def test_the_last_constrained_step_is_always_feasible_and_keeps_the_box(seed):
+    """(3) of :func:`constrained_steps`, the collision and torque rows soft, has a solution for any
+    rows, inside the step bounds; the first try keeps every row hard."""
+    rng = np.random.default_rng(seed)
+    n = 5
+    q = rng.uniform(-1, 1, n)
+    half = rng.uniform(1e-3, 0.05, n)
+    rows = rng.normal(size=(2, n))
+    box = JointBox(q - half, q + half, rows, rows @ q + rng.normal(0, 0.05, 2))
+    a_col, b_col = rng.normal(size=(3, n)), rng.normal(0, 0.05, 3)
+    tries = constrained_steps(box, q, 0.2, a_col, b_col)
+    assert tries[0].soft is None and len(tries) == 3
+    a = rng.normal(size=(n, n))
+    c = tries[-1]
+    x = solve_qp(a @ a.T + np.eye(n), rng.normal(size=n), c.lower, c.upper, "daqp", c.rows, c.bound, c.soft)
+    assert x is not None
+    assert np.all(x >= c.lower - 1e-9) and np.all(x <= c.upper + 1e-9)

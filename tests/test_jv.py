@@ -5,8 +5,10 @@ from __future__ import annotations
 
 from dataclasses import replace
 
+import hypothesis
 import numpy as np
 import pytest
+from hypothesis import strategies as st
 
 from conftest import ROBOTS, slowed, solve_problem
 from hlik import load_motion, load_robot, retarget
@@ -19,15 +21,18 @@ from hlik.metrics import costs
 from hlik.problem.placement import shoulder_placement
 from hlik.problem.targets import HandTargets, hand_targets
 from hlik.robot.state import robot_state
+from hlik.solvers.frames import JointBox
 from hlik.solvers.jv import (
     JVSettings,
     chan_dubey,
+    clamped_least_norm,
     evaluate_targets,
     jv_solver,
     limit_weights,
     null_space_projector,
     primary,
     solve,
+    weighted_least_norm,
 )
 
 
@@ -200,3 +205,24 @@ def test_named_solver_and_settings():
     assert traj.solver == "jv" and np.all(np.isfinite(traj.q))
     with pytest.raises(ValueError, match="scenario"):
         solve_problem(solve, r, motion, traj.targets, traj.placement, JVSettings(scenario="hands"))
+
+
+@hypothesis.settings(max_examples=40, deadline=None)
+@hypothesis.given(st.integers(0, 2**31 - 1))
+def test_the_task_step_is_the_least_squares_step_inside_the_box(seed):
+    """Where the free step leaves the frame's box, JV's task step is the best one inside it: no
+    worse than the free step clipped (nor than holding the joints it pushes out, the active set
+    that ended 2-Panda's frames on a corner of its narrow acceleration box)."""
+    rng = np.random.default_rng(seed)
+    jac, xdot = rng.normal(size=(6, 7)), rng.normal(0, 0.05, 6)
+    q, half = rng.uniform(-1, 1, 7), rng.uniform(1e-3, 0.02, 7)
+    box = JointBox(q - half, q + half)
+    weights, damping = np.ones(7), 5e-3
+    step = clamped_least_norm(jac, xdot, weights, damping, q, box)
+    assert np.all(q + step >= box.lower - 1e-9) and np.all(q + step <= box.upper + 1e-9)
+
+    def cost(x):
+        return float(np.sum(np.square(jac @ x - xdot)) + damping**2 * x @ x)
+
+    free = weighted_least_norm(jac, xdot, weights, damping)
+    assert cost(step) <= cost(np.clip(free, -half, half)) + 1e-12

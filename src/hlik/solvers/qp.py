@@ -218,8 +218,8 @@ def step(
     if pairs is not None and len(pairs):
         a_col, b_col = collision_rows(robot, data, pairs, bounds, settings, floors)  # q's kinematics in data
     dq = None
-    for lower, upper, a, b in constrained_steps(box, q, settings.max_step, a_col, b_col):
-        dq = solve_qp(hessian, gradient, lower, upper, settings.solver, a, b)
+    for c in constrained_steps(box, q, settings.max_step, a_col, b_col):
+        dq = solve_qp(hessian, gradient, c.lower, c.upper, settings.solver, c.rows, c.bound, c.soft)
         if dq is not None:
             break
     if dq is None or not np.all(np.isfinite(dq)):
@@ -228,10 +228,31 @@ def step(
 
 
 def solve_qp(
-    hessian, gradient, lb, ub, solver: str, a_ineq: np.ndarray, b_ineq: np.ndarray
+    hessian,
+    gradient,
+    lb,
+    ub,
+    solver: str,
+    a_ineq: np.ndarray,
+    b_ineq: np.ndarray,
+    soft: np.ndarray | None = None,
 ) -> np.ndarray | None:
     """min 1/2 x'Hx + g'x subject to lb <= x <= ub and a_ineq x <= b_ineq; None if the solver
-    fails (infeasible)."""
+    fails (infeasible). ``soft`` (k,): the rows with a positive entry may be missed by a slack
+    s_i >= 0 that costs ``soft_i max(diag H) s_i^2`` (:class:`~hlik.solvers.frames.StepConstraints`);
+    with a soft row, the problem is feasible wherever the bounds are."""
+    if soft is not None and np.any(soft > 0):
+        n, picked = len(lb), np.flatnonzero(soft > 0)
+        k = len(picked)
+        scale = float(np.max(np.diag(hessian), initial=1.0))
+        hessian = np.block([[hessian, np.zeros((n, k))], [np.zeros((k, n)), np.diag(scale * soft[picked])]])
+        gradient = np.concatenate([gradient, np.zeros(k)])
+        slack = np.zeros((len(b_ineq), k))
+        slack[picked, np.arange(k)] = -1.0
+        a_ineq = np.hstack([a_ineq, slack])
+        lb, ub = np.concatenate([lb, np.zeros(k)]), np.concatenate([ub, np.full(k, np.inf)])
+        x = solve_qp(hessian, gradient, lb, ub, solver, a_ineq, b_ineq)
+        return None if x is None else x[:n]
     if solver != "daqp":
         g = a_ineq if len(b_ineq) else None
         h = b_ineq if len(b_ineq) else None
