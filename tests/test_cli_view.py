@@ -491,12 +491,15 @@ def _checks(n: int, **changes):
         acceleration=np.zeros((n, 1)),
         acceleration_ratio=np.zeros(n),
         jerk=np.zeros(n),
+        jerk_ratio=np.zeros(n),
+        jerk_joint="j",
         torque=np.zeros((n, 1)),
         torque_ratio=np.zeros(n),
         at_stop=np.zeros(n, bool),
         lowest=np.zeros(n),
         base_height=0.0,
         acceleration_limit=np.ones(1),
+        jerk_limit=np.ones(1),
         effort_limit=np.ones(1),
     )
     return replace(quiet, **changes)
@@ -513,14 +516,15 @@ def test_each_exceeded_controller_limit_gets_one_warning(solver):
     over = np.where(np.arange(n) < 7, 1.5, 0.5)
     cases = {
         "accelerations exceed": dict(acceleration_ratio=over, acceleration=over[:, None]),
+        "jerks exceed": dict(jerk_ratio=over, jerk=over),
         "torques exceed": dict(torque_ratio=over, torque=over[:, None]),
         "of a stop": dict(at_stop=np.arange(n) < 7),
         "below the floor": dict(lowest=np.full(n, -0.05)),
     }
     for words, change in cases.items():
         notes = _controller_warnings(_checks(n, **change), tracking, share)
-        # jm maps the joints: its accelerations are not warned about, its torques are
-        expected = 0 if (words == "accelerations exceed" and not tracking) else 1
+        # jm maps the joints: its accelerations and jerks are not warned about, its torques are
+        expected = 0 if (words in ("accelerations exceed", "jerks exceed") and not tracking) else 1
         assert len(notes) == expected and all(words in note for note in notes), (words, notes)
-        if expected and words in ("accelerations exceed", "torques exceed", "of a stop"):
+        if expected and words in ("accelerations exceed", "jerks exceed", "torques exceed", "of a stop"):
             assert "7 of 100 frames" in notes[0]

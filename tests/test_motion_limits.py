@@ -63,12 +63,27 @@ def test_a_target_reversing_at_full_speed_keeps_every_limit(name, solver):
     assert np.max(checks.acceleration_ratio) <= 1.0 + 1e-4 and checks.frames_over_effort == 0, (name, solver)
 
 
+@pytest.mark.parametrize("solver", ["qp", "jv", "slsqp"])
+def test_a_panda_retargeted_at_1_khz_keeps_its_jerk_limits(solver):
+    """A target reversing every 0.1 s at libfranka's control rate: no frame's jerk above the
+    Panda's limits, as :func:`hlik.executable.controller_checks` measures it."""
+    r = load_robot("dual_panda")
+    motion = demo_motion().crop(1.0, 1.3).resample(1000.0)
+    problem = build_problem(motion, r)
+    q, _ = solve_problem(SOLVES[solver], r, motion, _square_wave(problem, period=100), problem.placement)
+    checks = controller_checks(trajectory_of(problem, q, solver), r)
+    assert checks.frames_over_jerk == 0, np.max(checks.jerk_ratio)
+    assert np.max(checks.jerk_ratio) > 0.5, "the reversals should drive some joint near its jerk limit"
+
+
 def test_every_bundled_robot_has_acceleration_and_effort_limits():
     for name in ROBOTS:
         r = load_robot(name)
         assert np.all(np.isfinite(r.acceleration_limit)) and np.all(r.acceleration_limit > 0), name
         assert np.all(np.isfinite(r.effort_limit)) and np.all(r.effort_limit > 0), name
         assert r.acceleration_source and r.effort_source, name
+    panda = load_robot("dual_panda")  # the one with published jerk limits (libfranka)
+    assert np.all(np.isfinite(panda.jerk_limit)) and "libfranka" in panda.jerk_source
 
 
 @settings(max_examples=30, deadline=None)
@@ -84,9 +99,9 @@ def test_a_walk_through_the_boxes_never_breaks_a_limit_and_brakes_before_the_sto
     limits = MotionLimits.of(r, LimitSettings(torque_limits=False))
     rng = np.random.default_rng(seed)
     dt = 0.01
-    q2 = q1 = np.clip(r.home, limits.inner_lower, limits.inner_upper)
+    q3 = q2 = q1 = np.clip(r.home, limits.inner_lower, limits.inner_upper)
     for _ in range(400):
-        box = limits.box(q1, q2, dt)
+        box = limits.box(q1, q2, dt, q3=q3)
         assert np.all(box.lower <= box.upper + 1e-12)
         if greedy == "up":
             q = box.upper.copy()
@@ -101,12 +116,40 @@ def test_a_walk_through_the_boxes_never_breaks_a_limit_and_brakes_before_the_sto
         assert np.all(q >= r.lower - 1e-12) and np.all(q <= r.upper + 1e-12)
         # never past the margin, and never faster toward it than it can still stop
         assert np.all(q <= limits.inner_upper + 1e-9) and np.all(q >= limits.inner_lower - 1e-9)
-        q2, q1 = q1, q
+        jerk = np.abs((q - 2 * q1 + q2) - (q1 - 2 * q2 + q3)) / dt**3
+        assert np.all(jerk <= r.jerk_limit * (1 + 1e-9))
+        q3, q2, q1 = q2, q1, q
     if greedy != "random":  # 4 s at full effort: every limited joint has come to rest at the margin
         limited = np.isfinite(r.lower)
         stop = limits.inner_upper if greedy == "up" else limits.inner_lower
         np.testing.assert_allclose(q1[limited], stop[limited], atol=1e-6)
         assert np.max(np.abs(q1 - q2)[limited]) / dt < 1e-3
+
+
+@settings(max_examples=10, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), greedy=st.sampled_from(["up", "down", "random"]))
+def test_at_the_pandas_1_khz_the_boxes_keep_its_jerk_limits(seed, greedy):
+    """At libfranka's 1 kHz the Panda's jerk limits bind (at 100 Hz its acceleration limits imply
+    them): any walk through the boxes keeps them, and the speed and acceleration limits, and the
+    stops; braking with a bounded jerk may overrun the 3 deg margin by a fraction of a degree."""
+    r = load_robot("dual_panda")
+    limits = MotionLimits.of(r, LimitSettings(torque_limits=False))
+    rng = np.random.default_rng(seed)
+    dt = 0.001
+    q3 = q2 = q1 = np.clip(r.home, limits.inner_lower, limits.inner_upper)
+    for _ in range(3000):
+        box = limits.box(q1, q2, dt, q3=q3)
+        pick = {"up": 1.0, "down": 0.0}.get(greedy, rng.random(r.dof))
+        q = box.lower + pick * (box.upper - box.lower)
+        a, a1 = (q - 2 * q1 + q2) / dt**2, (q1 - 2 * q2 + q3) / dt**2
+        assert np.all(np.abs(a - a1) / dt <= r.jerk_limit * (1 + 1e-6))
+        assert np.all(np.abs(a) <= r.acceleration_limit * (1 + 1e-6))
+        assert np.all(np.abs(q - q1) / dt <= r.velocity_limit * (1 + 1e-9))
+        assert np.all(q >= r.lower) and np.all(q <= r.upper)
+        assert np.all(q <= limits.inner_upper + np.radians(0.5)) and np.all(
+            q >= limits.inner_lower - np.radians(0.5)
+        )
+        q3, q2, q1 = q2, q1, q
 
 
 def test_the_braking_speed_stops_in_front_of_the_stop():

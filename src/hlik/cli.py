@@ -461,7 +461,13 @@ def _controller_line(c) -> str:
         )
     else:
         parts.append("no acceleration limits given")
-    parts.append(f"peak jerk {j['max_jerk']:.0f} rad/s³")
+    if c.has_jerk_limits:
+        parts.append(
+            f"peak jerk {j['max_jerk_ratio']:.2f} of its limit ({j['jerk_joint']}), "
+            f"{j['frames_over_jerk']} frames over"
+        )
+    else:
+        parts.append(f"peak jerk {j['max_jerk']:.0f} rad/s³ ({j['jerk_joint']}; no jerk limits given)")
     if c.has_effort_limits:
         parts.append(
             f"peak torque {j['max_torque_ratio']:.2f} of its limit ({j['torque_joint']}, "
@@ -483,6 +489,11 @@ def _controller_warnings(c, tracking: bool, share) -> list[str]:
         notes.append(
             f"joint accelerations exceed their limits in {share(c.frames_over_acceleration)}, at most "
             f"{j['max_acceleration_ratio']:.2f} x the limit ({j['acceleration_joint']})"
+        )
+    if tracking and c.frames_over_jerk:
+        notes.append(
+            f"joint jerks exceed their limits in {share(c.frames_over_jerk)}, at most "
+            f"{j['max_jerk_ratio']:.2f} x the limit ({j['jerk_joint']})"
         )
     if c.frames_over_effort:
         notes.append(

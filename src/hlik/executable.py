@@ -1,4 +1,4 @@
-"""What a robot controller checks before it runs a trajectory: joint accelerations, jerk and
+"""What a robot controller checks before it runs a trajectory: joint accelerations, jerks and
 torques against the robot's limits, joints parked on their stops, and the robot on its floor.
 
 Finite differences at the trajectory's frame period dt, the robot at rest before the first frame
@@ -39,30 +39,41 @@ class ControllerChecks:
         acceleration: (T, n) joint accelerations, rad/s^2 (0 at the last frame).
         acceleration_ratio: Largest |a_j| / a_max,j of the frame (0 where no joint has a limit).
         jerk: Largest |jerk_j| of the frame, rad/s^3.
+        jerk_ratio: Largest |jerk_j| / jerk_max,j of the frame (0 where no joint has a limit).
+        jerk_joint: The joint of the largest jerk over its limit (of the largest jerk without limits).
         torque: (T, n) joint torques, N m.
         torque_ratio: Largest |tau_j| / tau_max,j of the frame (0 where no joint has a limit).
         at_stop: A limited joint within :data:`AT_STOP` of one of its stops.
         lowest: World height of the robot's lowest point, m.
         base_height: World height of the base frame (the robot's floor), m.
-        acceleration_limit, effort_limit: (n,) the robot's limits, rad/s^2 and N m (``inf``: none).
+        acceleration_limit, jerk_limit, effort_limit: (n,) the robot's limits, rad/s^2, rad/s^3
+            and N m (``inf``: none).
     """
 
     joint_names: tuple[str, ...]
     acceleration: np.ndarray
     acceleration_ratio: np.ndarray
     jerk: np.ndarray
+    jerk_ratio: np.ndarray
+    jerk_joint: str
     torque: np.ndarray
     torque_ratio: np.ndarray
     at_stop: np.ndarray
     lowest: np.ndarray
     base_height: float
     acceleration_limit: np.ndarray
+    jerk_limit: np.ndarray
     effort_limit: np.ndarray
 
     @property
     def has_acceleration_limits(self) -> bool:
         """Whether the robot gives an acceleration limit for any joint."""
         return bool(np.any(np.isfinite(self.acceleration_limit)))
+
+    @property
+    def has_jerk_limits(self) -> bool:
+        """Whether the robot gives a jerk limit for any joint."""
+        return bool(np.any(np.isfinite(self.jerk_limit)))
 
     @property
     def has_effort_limits(self) -> bool:
@@ -76,6 +87,10 @@ class ControllerChecks:
     @property
     def frames_over_acceleration(self) -> int:
         return int(np.count_nonzero(self.acceleration_ratio > 1.0 + 1e-6))
+
+    @property
+    def frames_over_jerk(self) -> int:
+        return int(np.count_nonzero(self.jerk_ratio > 1.0 + 1e-6))
 
     @property
     def frames_over_effort(self) -> int:
@@ -111,6 +126,9 @@ class ControllerChecks:
             "acceleration_joint": accel_joint,
             "frames_over_acceleration": self.frames_over_acceleration,
             "max_jerk": float(self.jerk.max(initial=0.0)),
+            "max_jerk_ratio": float(self.jerk_ratio.max(initial=0.0)),
+            "jerk_joint": self.jerk_joint,
+            "frames_over_jerk": self.frames_over_jerk,
             "max_torque_ratio": float(self.torque_ratio.max(initial=0.0)),
             "torque_joint": torque_joint,
             "max_torque": abs(torque),
@@ -120,6 +138,7 @@ class ControllerChecks:
             "base_height": self.base_height,
             "lowest_point": self.lowest_point,
             "acceleration_limits": self.has_acceleration_limits,
+            "jerk_limits": self.has_jerk_limits,
             "effort_limits": self.has_effort_limits,
         }
 
@@ -132,14 +151,18 @@ def controller_checks(traj: Trajectory, robot: Robot) -> ControllerChecks:
     velocity = np.vstack([np.zeros((1, robot.dof)), steps / dt])  # into each frame, at rest before
     accel = np.zeros_like(q)
     accel[:-1] = np.diff(velocity, axis=0) / dt
-    jerk = np.zeros(len(q))
+    jerks = np.zeros_like(q)  # (T, n): into each frame's acceleration from the last
     if len(q) > 2:
-        jerk[1:-1] = np.max(np.abs(np.diff(accel[:-1], axis=0)) / dt, axis=1)
+        jerks[1:-1] = np.diff(accel[:-1], axis=0) / dt
+    jerk = np.max(np.abs(jerks), axis=1, initial=0.0)
+    limits = robot.jerk_limit if np.any(np.isfinite(robot.jerk_limit)) else np.ones(robot.dof)
+    jerk_joint = robot.joint_names[int(np.argmax(np.max(np.abs(jerks), axis=0) / limits))] if q.size else ""
     central = 0.5 * (velocity + np.vstack([velocity[1:], velocity[-1:]]))
     torque = inverse_dynamics(robot, q, central, accel)
     with np.errstate(invalid="ignore"):
         acc_ratio = np.max(np.abs(accel) / robot.acceleration_limit, axis=1, initial=0.0)
         tau_ratio = np.max(np.abs(torque) / robot.effort_limit, axis=1, initial=0.0)
+        jerk_ratio = np.max(np.abs(jerks) / robot.jerk_limit, axis=1, initial=0.0)
     limited = ~unlimited
     near = (q[:, limited] - robot.lower[limited] < AT_STOP) | (robot.upper[limited] - q[:, limited] < AT_STOP)
     p = traj.placement
@@ -149,12 +172,15 @@ def controller_checks(traj: Trajectory, robot: Robot) -> ControllerChecks:
         acceleration=accel,
         acceleration_ratio=np.nan_to_num(acc_ratio),
         jerk=jerk,
+        jerk_ratio=np.nan_to_num(jerk_ratio),
+        jerk_joint=jerk_joint,
         torque=torque,
         torque_ratio=np.nan_to_num(tau_ratio),
         at_stop=np.any(near, axis=1),
         lowest=lowest_points(robot, q, p.rotation, base),
         base_height=base,
         acceleration_limit=robot.acceleration_limit,
+        jerk_limit=robot.jerk_limit,
         effort_limit=robot.effort_limit,
     )
 

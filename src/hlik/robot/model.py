@@ -56,6 +56,9 @@ class Robot:
         acceleration_limit: (n,) largest joint acceleration in rad/s^2 (``[acceleration_limits]``);
             ``inf`` where the description gives none.
         acceleration_source: Where ``acceleration_limit`` comes from; ``""`` if not given.
+        jerk_limit: (n,) largest joint jerk in rad/s^3 (``[jerk_limits]``); ``inf`` where the
+            description gives none.
+        jerk_source: Where ``jerk_limit`` comes from; ``""`` if not given.
         effort_limit: (n,) largest joint torque in N m (``[effort_limits]`` or the URDF's
             ``<limit effort>``); ``inf`` where neither gives one.
         effort_source: Where ``effort_limit`` comes from; ``""`` if not given.
@@ -85,6 +88,8 @@ class Robot:
     velocity_source: str = ""
     acceleration_limit: np.ndarray = None  # type: ignore[assignment]  # None: inf, set below
     acceleration_source: str = ""
+    jerk_limit: np.ndarray = None  # type: ignore[assignment]
+    jerk_source: str = ""
     effort_limit: np.ndarray = None  # type: ignore[assignment]
     effort_source: str = ""
     manipulability_site: str = "tcp"
@@ -94,7 +99,7 @@ class Robot:
     subject_scale: float | str = 1.0
 
     def __post_init__(self):
-        for key in ("acceleration_limit", "effort_limit"):
+        for key in ("acceleration_limit", "jerk_limit", "effort_limit"):
             if getattr(self, key) is None:
                 object.__setattr__(self, key, np.full(len(self.joint_names), np.inf))
 
@@ -270,6 +275,7 @@ def _build(path: Path, desc: dict, need_mapping: bool = True) -> Robot:
     acceleration, acceleration_source = _joint_limits(
         path, desc, names, "acceleration_limits", "rad/s^2", {}, required=False
     )
+    jerk, jerk_source = _joint_limits(path, desc, names, "jerk_limits", "rad/s^3", {}, required=False)
     effort, effort_source = _joint_limits(
         path, desc, names, "effort_limits", "N m", compiled.effort, required=False
     )
@@ -296,6 +302,8 @@ def _build(path: Path, desc: dict, need_mapping: bool = True) -> Robot:
         velocity_source=velocity_source,
         acceleration_limit=acceleration,
         acceleration_source=acceleration_source,
+        jerk_limit=jerk,
+        jerk_source=jerk_source,
         effort_limit=effort,
         effort_source=effort_source,
         manipulability_site=manip_site,

@@ -76,7 +76,7 @@ def track(
     for k in range(n_frames):
         start = time.perf_counter()
         sample = sample_at(problem.reference, problem.targets, k, history, problem.dt)
-        box = limits.box(q if k else None, history[1], problem.dt, data)
+        box = limits.box(q if k else None, history[1], problem.dt, data, history[2])
         # from the constant-speed prediction: the previous configuration lies outside the
         # acceleration box whenever a joint moves faster than a_max dt, and clipped into it, it
         # starts the frame on the box's corner (JV's steps then chattered between corners)

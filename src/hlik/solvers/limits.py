@@ -4,8 +4,9 @@ Per joint, from the robot description (:class:`hlik.robot.model.Robot`): the pos
 speed, the acceleration and the effort (torque). Each frame's configuration ``q_t`` is bounded,
 given the two previous solutions ``q1 = q_t-1``, ``q2 = q_t-2`` (``v1 = (q1 - q2) / dt``), by
 
-- the position stops, |q_t - q1| <= v_max dt (speed) and |q_t - 2 q1 + q2| <= a_max dt^2
-  (acceleration): hard;
+- the position stops, |q_t - q1| <= v_max dt (speed), |q_t - 2 q1 + q2| <= a_max dt^2
+  (acceleration) and, where the robot gives jerk limits and the frame before ``q3 = q_t-3`` is
+  known, |(q_t - 2 q1 + q2) - (q1 - 2 q2 + q3)| <= j_max dt^3 (jerk): hard;
 - a margin of ``stop_margin`` inside the stops, approached by braking: the speed toward the
   margin at distance D after the step may be at most sqrt(2 a_max D), which bounds the step in
   closed form (:func:`braking_speed`). From any state that kept these bounds, the next frame's
@@ -118,7 +119,8 @@ class LimitSettings:
 
     Attributes:
         stop_margin: Margin kept from every position stop, rad (at most a fifth of a joint's range).
-        acceleration_limits: Keep the robot's ``[acceleration_limits]`` and brake before the stops.
+        acceleration_limits: Keep the robot's ``[acceleration_limits]`` and ``[jerk_limits]``, and brake
+            before the stops.
         torque_limits: Keep the joint torques within ``torque_fraction`` of ``[effort_limits]``.
         torque_fraction: Share of the effort limit the linearised torque rows allow (the rows
             take the Coriolis terms at the previous frame's speed).
@@ -140,6 +142,7 @@ class MotionLimits:
         inner_lower, inner_upper: The stops moved in by the margin, rad.
         velocity: Speed limits, rad/s.
         acceleration: Acceleration limits, rad/s^2 (``inf``: none).
+        jerk: Jerk limits, rad/s^3 (``inf``: none).
         effort: Torque limits allowed to the solvers, N m (``inf``: none).
     """
 
@@ -150,6 +153,7 @@ class MotionLimits:
     inner_upper: np.ndarray
     velocity: np.ndarray
     acceleration: np.ndarray
+    jerk: np.ndarray
     effort: np.ndarray
 
     @classmethod
@@ -160,6 +164,7 @@ class MotionLimits:
         margin = np.minimum(s.stop_margin, 0.2 * (robot.upper - robot.lower))
         margin = np.where(np.isfinite(margin), margin, 0.0)
         accel = robot.acceleration_limit if s.acceleration_limits else np.full(robot.dof, np.inf)
+        jerk = robot.jerk_limit if s.acceleration_limits else np.full(robot.dof, np.inf)
         effort = s.torque_fraction * robot.effort_limit if s.torque_limits else np.full(robot.dof, np.inf)
         return cls(
             robot,
@@ -169,6 +174,7 @@ class MotionLimits:
             robot.upper - margin,
             robot.velocity_limit,
             accel,
+            jerk,
             effort,
         )
 
@@ -176,9 +182,17 @@ class MotionLimits:
     def has_torque(self) -> bool:
         return bool(np.any(np.isfinite(self.effort)))
 
-    def box(self, q1: np.ndarray | None, q2: np.ndarray | None, dt: float, data: mujoco.MjData | None = None):
+    def box(
+        self,
+        q1: np.ndarray | None,
+        q2: np.ndarray | None,
+        dt: float,
+        data: mujoco.MjData | None = None,
+        q3: np.ndarray | None = None,
+    ):
         """The :class:`~hlik.solvers.frames.JointBox` of the frame after ``q1`` (n,), ``q2`` (n,)
-        (the two previous solutions; ``q1`` None: the first frame, the stops only)."""
+        and ``q3`` (n,) (the previous solutions, newest first; ``q1`` None: the first frame, the
+        stops only; ``q3`` None: no jerk bound)."""
         if q1 is None:  # the start: anywhere inside the margin
             return JointBox(self.inner_lower, self.inner_upper)
         q2 = q1 if q2 is None else q2
@@ -186,11 +200,25 @@ class MotionLimits:
         a = self.acceleration
         reach = self.velocity * dt
         with np.errstate(invalid="ignore"):
-            change = np.where(np.isfinite(a), a * dt * dt, np.inf)
             coast = q1 + v1 * dt
+            # the acceleration this frame may take, rad/s^2: within its limit, within the jerk limit
+            # of the last frame's, and no more toward the speed limit than the jerk limit can take
+            # back before it (the speed's braking, as the position's before the stops); where that
+            # interval is empty (a start beyond it), the acceleration limit alone
+            a_lo, a_hi = -a, a.copy()
+            if q3 is not None and np.any(np.isfinite(self.jerk)):
+                last = (q1 - 2.0 * q2 + q3) / (dt * dt)
+                j_lo = np.maximum(a_lo, last - self.jerk * dt)
+                j_hi = np.minimum(a_hi, last + self.jerk * dt)
+                j_hi = np.minimum(j_hi, braking_speed(self.velocity - v1, self.jerk, dt))
+                j_lo = np.maximum(j_lo, -braking_speed(self.velocity + v1, self.jerk, dt))
+                keep = j_lo <= j_hi
+                a_lo, a_hi = np.where(keep, j_lo, a_lo), np.where(keep, j_hi, a_hi)
+            change_lo = np.where(np.isfinite(a_lo), a_lo * dt * dt, -np.inf)
+            change_hi = np.where(np.isfinite(a_hi), a_hi * dt * dt, np.inf)
         speed_lo, speed_hi = np.maximum(self.lower, q1 - reach), np.minimum(self.upper, q1 + reach)
-        hard_lo = np.maximum(speed_lo, coast - change)
-        hard_hi = np.minimum(speed_hi, coast + change)
+        hard_lo = np.maximum(speed_lo, coast + change_lo)
+        hard_hi = np.minimum(speed_hi, coast + change_hi)
         # a state outside the hard box (a start beyond a stop) keeps at least the speed box
         bad = hard_lo > hard_hi
         hard_lo = np.where(bad, speed_lo, hard_lo)
