@@ -10,8 +10,9 @@ changed; what hlik needs is edited into the compiled copy:
   angle (0 if none), so that the configuration holds exactly the robot's solved joints;
 - ``[sites]``: the shoulder, elbow, wrist, TCP and manipulability frames as a body plus an offset;
 - geoms that collide go to group :data:`COLLISION_GROUP`, the others to :data:`VISUAL_GROUP`; body
-  pairs that touch at the home pose (links that overlap by construction) are excluded from
-  collision, with the pairs of ``[collision] exclude``.
+  pairs that touch at the home pose (links that overlap by construction), and those closer than
+  1 cm at home and in every one of 64 random configurations (parts of one joint), are excluded
+  from collision, with the pairs of ``[collision] exclude``.
 - a body with visual geometry but no collision geometry (the G1's rubber hands, pelvis and waist
   links have visual meshes only) gets a fitted collision primitive per visual geom
   (:func:`fit_collision_shapes`), so that it is seen by the self-collision checks.
@@ -144,7 +145,8 @@ def compile_model(
                 raise RobotError(f"{toml}: [collision] exclude names body {body!r}, not in {path.name}")
         spec.add_exclude(bodyname1=pair[0], bodyname2=pair[1])
     model = _compile(spec, path)
-    touching = _touching_at_home(model, [home.get(model.joint(i).name, 0.0) for i in range(model.njnt)])
+    at_home = [home.get(model.joint(i).name, 0.0) for i in range(model.njnt)]
+    touching = sorted({*_touching_at_home(model, at_home), *_near_by_construction(model, at_home)})
     for b1, b2 in touching:
         spec.add_exclude(bodyname1=b1, bodyname2=b2)
     if touching:
@@ -287,6 +289,41 @@ def _touching_at_home(model: mujoco.MjModel, home: Sequence[float]) -> list[tupl
         b1, b2 = sorted(model.body(model.geom_bodyid[g]).name for g in contact.geom)
         pairs.add((b1, b2))
     return sorted(pairs)
+
+
+NEAR = 0.01  # m: body pairs always this close are parts of one joint, not a collision to avoid
+SAMPLES = 64  # random configurations :func:`_near_by_construction` tries
+
+
+def _near_by_construction(model: mujoco.MjModel, home: Sequence[float]) -> list[tuple[str, str]]:
+    """Body pairs whose collision geoms are closer than :data:`NEAR` at home and in every one of
+    :data:`SAMPLES` random configurations within the joint limits (seeded): parts that sit against
+    each other at a joint whatever the joints do, such as the G1's shoulder links against the
+    convex hull of its torso mesh, 8 mm apart. A solver keeping a 1 cm margin would push at them in
+    every frame, against the targets; MoveIt's setup assistant disables such "always" pairs too."""
+    margin = model.geom_margin.copy()
+    model.geom_margin[:] = NEAR  # mj_collision then reports every pair closer than that
+    try:
+        data = mujoco.MjData(model)
+        rng = np.random.default_rng(0)
+        lo = np.where(model.jnt_limited.astype(bool), model.jnt_range[:, 0], -np.pi)[: model.nq]
+        hi = np.where(model.jnt_limited.astype(bool), model.jnt_range[:, 1], np.pi)[: model.nq]
+        near: set[tuple[str, str]] | None = None
+        for k in range(SAMPLES + 1):
+            q = np.asarray(home, dtype=float)[: model.nq] if k == 0 else rng.uniform(lo, hi)
+            data.qpos[:] = q if model.nq else data.qpos
+            mujoco.mj_kinematics(model, data)
+            mujoco.mj_collision(model, data)
+            found = {
+                tuple(sorted(model.body(model.geom_bodyid[g]).name for g in c.geom))
+                for c in data.contact[: data.ncon]
+            }
+            near = found if near is None else near & found
+            if not near:
+                break
+        return sorted(near or ())
+    finally:
+        model.geom_margin[:] = margin
 
 
 FITTED = "col_fitted_"  # name prefix of the collision primitives fitted to visual-only bodies
