@@ -2,11 +2,14 @@
 
 Both solve every frame of 2 s of the demo to convergence with the same stopping rule (steps of
 at most 20, until no joint moves more than 1e-4 rad), each frame starting from the previous
-solution. hlik: ``qp.solve`` with both TCP pose terms, smoothness, SYN and HJA_r and the joint
-limits, self-collision avoidance off (mink's stack below has none; a third line shows hlik with
-it). mink: two FrameTasks, a PostureTask to the robot's home and ConfigurationLimit (daqp both).
-Run by hand: ``python bench/qp_step.py``; the last line is ``ratio hlik/mink: X.XX`` (median CPU
-time per frame, hlik over mink). The machine has 2 shared cores: read medians and ratios.
+solution (the first from the clipped mapped human pose). hlik: ``qp.solve`` with both TCP pose
+terms, smoothness, SYN and HJA_r and the joint limits, self-collision avoidance off (mink's stack
+below has none) and the frame box of ``solvers/limits.py`` off (mink's ConfigurationLimit holds
+the position stops only); two more lines show hlik with the frame box, and with it and
+self-collision avoidance. mink: two FrameTasks, a PostureTask to the robot's home and
+ConfigurationLimit (daqp both). Run by hand: ``python bench/qp_step.py``; the last line is
+``ratio hlik/mink: X.XX`` (median CPU time per frame, hlik over mink). The machine has 2 shared
+cores: read medians and ratios.
 """
 
 from __future__ import annotations
@@ -21,6 +24,7 @@ import hlik
 from hlik.criteria.learned import learn
 from hlik.paths import demo_motion_path
 from hlik.problem.problem import build_problem
+from hlik.solvers.limits import STOP_MARGIN
 from hlik.solvers.qp import QPSettings, solve
 
 REPEATS = 3
@@ -38,7 +42,9 @@ def mink_frames(problem) -> tuple[np.ndarray, np.ndarray]:
     posture = mink.PostureTask(robot.model, cost=1e-2)
     posture.set_target(robot.home)
     limits = [mink.ConfigurationLimit(robot.model)]
-    config.update(robot.home)
+    # from where hlik's frame loop starts: the clipped mapped human pose (from home, 1 m from the
+    # targets, mink's unbounded steps wander off and never settle: 20 steps every frame)
+    config.update(np.clip(problem.reference.q_map[0], robot.lower, robot.upper))
     seconds, steps = [], []
     for k in range(problem.n_frames):
         start = time.process_time()
@@ -69,20 +75,36 @@ def main() -> None:
     motion = hlik.load_motion(demo_motion_path(), rate=100.0).crop(2.0, 4.0)
     problem = build_problem(motion, robot)
     learned = learn(robot)
-    plain = QPSettings(criteria=("SYN", "HJA_r"), self_collision=False, max_iter=MAX_ITER, tol=TOL)
-    runs: dict[str, list[float]] = {"mink": [], "hlik": [], "hlik + collisions": []}
+    # mink's stack has the position stops only: hlik's without the frame box's speed, acceleration,
+    # torque rows and stop margin for the ratio, with them (and with collisions) for their cost
+    plain = QPSettings(
+        criteria=("SYN", "HJA_r"),
+        self_collision=False,
+        max_iter=MAX_ITER,
+        tol=TOL,
+        acceleration_limits=False,
+        torque_limits=False,
+        stop_margin=0.0,
+    )
+    limited = replace(plain, acceleration_limits=True, torque_limits=True, stop_margin=STOP_MARGIN)
+    names = ("mink", "hlik", "hlik + limits", "hlik + limits + collisions")
+    runs: dict[str, list[float]] = {name: [] for name in names}
     steps: dict[str, float] = {}
     for _ in range(REPEATS):
         seconds, n = mink_frames(problem)
         runs["mink"].append(float(np.mean(seconds[1:])))
         steps["mink"] = float(np.mean(n[1:]))
-        for name, settings in (("hlik", plain), ("hlik + collisions", replace(plain, self_collision=True))):
+        for name, settings in (
+            ("hlik", plain),
+            ("hlik + limits", limited),
+            ("hlik + limits + collisions", replace(limited, self_collision=True)),
+        ):
             per_frame, n = hlik_frames(problem, settings, learned)
             runs[name].append(per_frame)
             steps[name] = float(np.mean(n[1:]))
     med = {k: float(np.median(v)) for k, v in runs.items()}
     for name, value in med.items():
-        print(f"{name:18s} {1e3 * value:7.2f} ms/frame (CPU, median of {REPEATS}), {steps[name]:.1f} steps")
+        print(f"{name:26s} {1e3 * value:7.2f} ms/frame (CPU, median of {REPEATS}), {steps[name]:.1f} steps")
     print(f"ratio hlik/mink: {med['hlik'] / med['mink']:.2f}")
 
 
