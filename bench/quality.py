@@ -12,7 +12,12 @@ controller checks (:mod:`hlik.executable`): ``acc`` the largest joint accelerati
 ``acc>%`` the share of frames above an acceleration limit, ``tau`` the largest torque over its
 effort limit, ``tau>%`` the frames above one, ``stop %`` the frames with a joint within 0.5 deg of a
 stop, ``floor cm`` the lowest point of the robot against the floor (worst take), ``lag %`` the
-frames with a hand more than 5 cm off, ``fORI`` the median hand orientation error in degrees. An
+frames with a hand more than 5 cm off, ``fORI`` the median hand orientation error in degrees.
+Posture (:mod:`hlik.posture`, medians over the takes): ``lean`` the trunk lean's median difference
+from the subject's in degrees, ``behind %`` the frames with an elbow more than 5 cm behind the
+shoulders' frontal plane (either arm; ``subj %`` the subject's), ``hands``
+the hands' distance in front of the shoulders over the subject's (per arm length), ``path`` the
+arm joints' path over the mapped human pose's. An
 approach ``solver@stack+...`` takes its weights from that stack (``slsqp@paper_opt``).
 
 Run by hand: ``python bench/quality.py [--robots armar3,armar6] [--approaches qp,qp+SYN]
@@ -81,6 +86,7 @@ def run(
     qp_overrides = overrides if solver == "qp" else {}
     rows, fpos, freach, off, times, capped, speed, contact = [], [], [], [], [], [], [], []
     acc, acc_over, tau, tau_over, stop, floor, fori = [], [], [], [], [], [], []
+    lean, behind, subject_behind, hands, path = [], [], [], [], []
     for take in takes:
         motion = hlik.load_motion(take, rate=100.0)
         motion = scale_subject(motion.crop(1.0, min(1.0 + seconds, motion.duration)), robot)
@@ -107,6 +113,12 @@ def run(
         stop.append(c.at_stop)
         floor.append(c.lowest_point)
         fori.append(rotation_angle(traj.tcp_rot, traj.targets.rot).ravel())
+        pj = ev.posture.to_json()
+        lean.append(pj["trunk_lean_difference_deg"])
+        behind.append(ev.posture.robot.elbow_behind.any(axis=1))
+        subject_behind.append(ev.posture.subject.elbow_behind.any(axis=1))
+        hands.append(np.mean(pj["hand_front_ratio"]))
+        path.append(pj["path_ratio"])
         fpos.append(err.ravel())
         freach.append(err[reachable(robot, traj)])
         off.append(relative_errors(traj.tcp_pos, traj.tcp_rot, traj.targets.pos, traj.targets.rot)[0])
@@ -130,6 +142,11 @@ def run(
         "floor": 100 * max(floor, key=abs),
         "lag": 100 * np.mean(np.concatenate([np.any(e.reshape(-1, 2) > 0.05, axis=1) for e in fpos])),
         "fori": np.degrees(np.median(np.concatenate(fori))),
+        "lean": float(np.median(lean)),
+        "behind": 100 * np.mean(np.concatenate(behind)),
+        "subj_behind": 100 * np.mean(np.concatenate(subject_behind)),
+        "hands": float(np.median(hands)),
+        "path": float(np.median(path)),
     }
 
 
@@ -167,6 +184,11 @@ def main() -> None:
         ("floor cm", 8),
         ("lag %", 5),
         ("fORI", 5),
+        ("lean", 5),
+        ("behind %", 8),
+        ("subj %", 6),
+        ("hands", 5),
+        ("path", 5),
     )
     print(head + " ".join(f"{name:>{width}s}" for name, width in cols), flush=True)
     for robot_name in args.robots.split(","):
@@ -178,7 +200,8 @@ def main() -> None:
                 f"{100 * r['fpos']:8.2f} {100 * r['freach']:8.2f} {100 * r['fpos_off']:7.2f} {r['ms']:8.2f} "
                 f"{r['capped']:8.1f} {r['speed']:6.2f} {r['contact']:9.1f} {r['acc']:5.2f} "
                 f"{r['acc_over']:5.1f} {r['tau']:5.2f} {r['tau_over']:5.1f} {r['stop']:6.1f} "
-                f"{r['floor']:8.2f} {r['lag']:5.1f} {r['fori']:5.1f}",
+                f"{r['floor']:8.2f} {r['lag']:5.1f} {r['fori']:5.1f} {r['lean']:5.1f} {r['behind']:8.1f} "
+                f"{r['subj_behind']:6.1f} {r['hands']:5.2f} {r['path']:5.2f}",
                 flush=True,
             )
 

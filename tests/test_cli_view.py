@@ -498,6 +498,7 @@ def _checks(n: int, **changes):
         at_stop=np.zeros(n, bool),
         lowest=np.zeros(n),
         base_height=0.0,
+        end_speed=np.zeros(1),
         acceleration_limit=np.ones(1),
         jerk_limit=np.ones(1),
         effort_limit=np.ones(1),
@@ -528,3 +529,13 @@ def test_each_exceeded_controller_limit_gets_one_warning(solver):
         assert len(notes) == expected and all(words in note for note in notes), (words, notes)
         if expected and words in ("accelerations exceed", "jerks exceed", "torques exceed", "of a stop"):
             assert "7 of 100 frames" in notes[0]
+
+
+def test_the_controller_row_says_how_the_motion_ends():
+    """A trajectory that ends moving needs time to stop beyond its last frame (|v| / a_max)."""
+    from hlik.cli import _controller_line
+
+    moving = _checks(10, end_speed=np.array([0.5]), acceleration_limit=np.array([2.0]))
+    assert moving.stop_time == pytest.approx(0.25)
+    assert "ends moving at up to 0.50 rad/s (0.25 s to stop" in _controller_line(moving)
+    assert _checks(10).stop_time == 0.0 and "ends at rest" in _controller_line(_checks(10))

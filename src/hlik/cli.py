@@ -477,7 +477,31 @@ def _controller_line(c) -> str:
         parts.append(f"peak torque {j['max_torque']:.1f} N m ({j['torque_joint']}; no effort limits given)")
     parts.append(f"a joint within 0.5° of a stop in {100 * j['share_at_stop']:.1f} % of frames")
     parts.append(f"base at z {j['base_height']:.3f} m, lowest point {j['lowest_point']:.3f} m")
+    if j["end_speed"] > 0.0:
+        parts.append(
+            f"ends moving at up to {j['end_speed']:.2f} rad/s ({j['stop_time']:.2f} s to stop at the "
+            "acceleration limits)"
+        )
+    else:
+        parts.append("ends at rest")
     return "; ".join(parts)
+
+
+def _posture_line(p) -> str:
+    """The summary's ``posture`` row: the robot's :class:`hlik.posture.Posture` beside the subject's
+    (medians; lengths as shares of the arm's length; left / right)."""
+    j = p.to_json()
+    pair = lambda key: " / ".join(f"{v:.2f}" for v in j[key])  # noqa: E731
+    percent = lambda key: " / ".join(f"{100 * v:.0f} %" for v in j[key])  # noqa: E731
+    return (
+        f"trunk lean {j['trunk_lean_deg']:.0f}° (subject {j['subject_trunk_lean_deg']:.0f}°); "
+        f"elbows in front of the shoulders {pair('elbow_front_share')} arm (subject "
+        f"{pair('subject_elbow_front_share')}), > 5 cm behind in {percent('elbow_behind_share')} of frames "
+        f"(subject {percent('subject_elbow_behind_share')}); hands in front {pair('hand_front_share')} arm "
+        f"(subject {pair('subject_hand_front_share')}); swivel off the subject's by "
+        f"{' / '.join(f'{v:.0f}°' for v in j['swivel_difference_deg'])}; arm joint path "
+        f"{j['path_ratio']:.2f} of the subject's"
+    )
 
 
 def _controller_warnings(c, tracking: bool, share) -> list[str]:
@@ -669,6 +693,7 @@ def _run_summary(title: str, traj, motion, solve_time: float, rrd: Path, npz: Pa
     )
     table.add_row("body", f"{int(np.count_nonzero(ev.collisions))} frames in self-collision; {speeds}")
     table.add_row("controller", _controller_line(ev.controller))
+    table.add_row("posture", _posture_line(ev.posture))
     lag = _lag_spans(fpos, traj.times) if ev.scenario == "pose" else ""  # relative: no hand targets
     if lag:
         reason = (

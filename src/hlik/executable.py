@@ -5,9 +5,13 @@ Finite differences at the trajectory's frame period dt, the robot at rest before
 (as the solvers assume, :mod:`hlik.solvers.limits`): velocity ``v_t = (q_t+1 - q_t) / dt``,
 acceleration ``a_t = (q_t+1 - 2 q_t + q_t-1) / dt^2`` (t = 0 .. T-2), jerk the difference of a.
 Torques are ``mujoco.mj_inverse`` at ``q_t`` with the central-difference velocity and ``a_t``:
-inertia (with the models' armature), Coriolis and centrifugal terms and gravity; contacts and
-other constraints are off (the solvers keep the robot out of itself, and nothing else touches it),
-as are passive forces (the models have no springs or damping).
+inertia (with the models' armature, where they have one), Coriolis and centrifugal terms and
+gravity; contacts and other constraints are off (the solvers keep the robot out of itself, and
+nothing else touches it), as are passive forces: the models have no springs, and their joint
+damping (ARMAR-III 1.0, ARMAR-6 0.5 N m s/rad) is a simulation setting, not a measured friction
+(with it ARMAR-6's peak torque on the Cut take moves by 0.2 %). The trajectory ends where its last
+frame does: ``end_speed`` says how fast it still moves there and ``stop_time`` how long its joints
+need to stop at their acceleration limits.
 """
 
 from __future__ import annotations
@@ -46,6 +50,7 @@ class ControllerChecks:
         at_stop: A limited joint within :data:`AT_STOP` of one of its stops.
         lowest: World height of the robot's lowest point, m.
         base_height: World height of the base frame (the robot's floor), m.
+        end_speed: (n,) each joint's speed into the last frame, rad/s.
         acceleration_limit, jerk_limit, effort_limit: (n,) the robot's limits, rad/s^2, rad/s^3
             and N m (``inf``: none).
     """
@@ -61,6 +66,7 @@ class ControllerChecks:
     at_stop: np.ndarray
     lowest: np.ndarray
     base_height: float
+    end_speed: np.ndarray
     acceleration_limit: np.ndarray
     jerk_limit: np.ndarray
     effort_limit: np.ndarray
@@ -101,6 +107,14 @@ class ControllerChecks:
         return float(np.count_nonzero(self.at_stop) / max(self.n_frames, 1))
 
     @property
+    def stop_time(self) -> float:
+        """How long the joints still moving at the last frame need to stop at their acceleration
+        limits, s (0 at rest; ``inf`` if a moving joint has no limit)."""
+        with np.errstate(divide="ignore", invalid="ignore"):
+            times = np.where(self.end_speed > 0, np.abs(self.end_speed) / self.acceleration_limit, 0.0)
+        return float(np.max(times, initial=0.0))
+
+    @property
     def lowest_point(self) -> float:
         """The lowest the robot reaches in any frame, world z, m."""
         return float(self.lowest.min(initial=np.inf)) if self.n_frames else self.base_height
@@ -137,6 +151,8 @@ class ControllerChecks:
             "share_at_stop": self.share_at_stop,
             "base_height": self.base_height,
             "lowest_point": self.lowest_point,
+            "end_speed": float(np.max(np.abs(self.end_speed), initial=0.0)),
+            "stop_time": self.stop_time,
             "acceleration_limits": self.has_acceleration_limits,
             "jerk_limits": self.has_jerk_limits,
             "effort_limits": self.has_effort_limits,
@@ -179,6 +195,7 @@ def controller_checks(traj: Trajectory, robot: Robot) -> ControllerChecks:
         at_stop=np.any(near, axis=1),
         lowest=lowest_points(robot, q, p.rotation, base),
         base_height=base,
+        end_speed=velocity[-1] if len(q) else np.zeros(robot.dof),
         acceleration_limit=robot.acceleration_limit,
         jerk_limit=robot.jerk_limit,
         effort_limit=robot.effort_limit,

@@ -18,6 +18,7 @@ from hlik.criteria.smoothness import history
 from hlik.errors import SettingsError
 from hlik.executable import ControllerChecks, controller_checks
 from hlik.human.motion import frame_period
+from hlik.posture import Posture, posture
 from hlik.problem.reference import HumanReference, reference_sample
 from hlik.robot.model import Robot, self_contacts
 from hlik.robot.state import robot_state
@@ -39,6 +40,8 @@ class Evaluation:
         collisions: (T,) True where the robot touches itself (:func:`hlik.robot.model.self_contacts`).
         controller: What a controller checks: accelerations, jerk, torques, stops, floor
             (:mod:`hlik.executable`).
+        posture: Trunk lean, elbows and hands against the shoulders, swivel and joint path,
+            the robot's beside the subject's (:mod:`hlik.posture`; not part of m_hl).
         metric: The weights and x0 the scores used (Table III unless another was given).
     """
 
@@ -52,6 +55,7 @@ class Evaluation:
     collisions: np.ndarray
     metric: unified.Metric
     controller: ControllerChecks
+    posture: Posture
 
     @property
     def max_speed_ratio(self) -> float:
@@ -76,6 +80,7 @@ class Evaluation:
             "collisions": int(np.count_nonzero(self.collisions)),
             "max_speed_ratio": self.max_speed_ratio,
             "controller": self.controller.to_json(),
+            "posture": self.posture.to_json(),
             "metric": self.metric.source,
         }
 
@@ -139,6 +144,7 @@ def evaluate(
         collisions=collision_frames(traj, robot),
         metric=metric,
         controller=controller_checks(traj, robot),
+        posture=posture(traj, robot),
     )
 
 
