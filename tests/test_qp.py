@@ -13,14 +13,15 @@ from conftest import ROBOTS, central_differences, slowed, solve_problem
 from hlik import load_motion, load_robot, retarget
 from hlik.cli import app
 from hlik.criteria.base import Sample
-from hlik.criteria.functional import fORI, fORI_off, fPOS, fPOS_off, rotation_vector
+from hlik.criteria.functional import fORI, fORI_off, fPOS, fPOS_off, rotation_angle, rotation_vector
 from hlik.criteria.learned import learn
 from hlik.human.demo import demo_motion
 from hlik.human.kinematics import forward_kinematics
 from hlik.problem.placement import shoulder_placement
 from hlik.problem.targets import HandTargets, hand_targets
-from hlik.robot.model import SIDES
+from hlik.robot.model import SIDES, joint_mapping, tcp_poses
 from hlik.robot.state import robot_state
+from hlik.solvers import qp
 from hlik.solvers.mink_tasks import CriterionTask, HumanJointLimit
 from hlik.solvers.qp import QPSettings, qp_solver, solve
 
@@ -170,3 +171,45 @@ def test_relative_scenario_keeps_the_hands_relative_pose(takes, name):
     assert np.median(off_pos) < 0.01 and np.median(off_rot) < np.radians(3)
     first = np.linalg.norm(traj.tcp_pos[0] - traj.targets.pos[0], axis=-1)
     assert np.all(first < 0.05)  # the first frame tracks the hands themselves
+
+
+@pytest.mark.parametrize("name", ROBOTS)
+def test_the_band_keeps_reachable_hands_on_target_while_the_criteria_shape_the_arm(takes, name):
+    """Reachable targets (the robot's own TCP along its joint mapping, played 3x slower) and strong
+    criteria: without the band they turn the hands cm and degrees off; with it every hand stays
+    within 5 mm and 3 deg of its target after the first frame, and the arm still moves away from
+    the mapping (the criteria act inside the band and in the null space)."""
+    r = load_robot(name)
+    motion = slowed(load_motion(takes[0], rate=100).crop(2.0, 2.5), 3.0).resample(100.0)
+    targets = HandTargets(*tcp_poses(r, joint_mapping(r, motion)))
+    placement = shoulder_placement(r, forward_kinematics(motion))
+    strong = QPSettings(criteria=("SYN", "HJA_r"), criterion_cost=1.0)
+    banded = replace(strong, position_band=0.005, orientation_band=np.radians(3.0))
+    errors = {}
+    for label, settings in (("free", strong), ("band", banded)):
+        q, _ = solve_problem(qp.solve, r, motion, targets, placement, settings, learned=learn(r))
+        state = robot_state(r, q)
+        pos = np.linalg.norm(state.tcp - targets.pos, axis=-1)[1:]
+        ori = rotation_angle(state.tcp_rot, targets.rot)[1:]
+        errors[label] = (pos.max(), ori.max(), np.abs(q - joint_mapping(r, motion)).max())
+    assert errors["free"][0] > 0.01 or errors["free"][1] > np.radians(6.0), errors
+    assert errors["band"][0] <= 0.005 + 1e-4 and errors["band"][1] <= np.radians(3.0) + 1e-3, errors
+    assert errors["band"][2] > 0.05, errors
+
+
+def test_targets_out_of_the_band_s_reach_lag_without_failing(takes):
+    """Targets 1.5 m beyond reach: the band cannot be met; the slack lets every step through, the
+    limits hold, and the hands stay as near the targets as without the band (within 1 cm)."""
+    r = load_robot("armar6")
+    motion = load_motion(takes[0], rate=100).crop(2.0, 2.5)
+    placement = shoulder_placement(r, forward_kinematics(motion))
+    near = HandTargets(*tcp_poses(r, joint_mapping(r, motion)))
+    far = replace(near, pos=near.pos + np.array([0.0, 1.5, 0.0]))
+    settings = QPSettings(position_band=0.005, orientation_band=np.radians(3.0))
+    q, result = solve_problem(qp.solve, r, motion, far, placement, settings)
+    assert np.all(np.isfinite(q)) and not np.any(result.diagnostics.failed)
+    assert np.all(q >= r.lower - 1e-9) and np.all(q <= r.upper + 1e-9)
+    gap = np.linalg.norm(robot_state(r, q).tcp - far.pos, axis=-1)
+    plain, _ = solve_problem(qp.solve, r, motion, far, placement, QPSettings())
+    plain_gap = np.linalg.norm(robot_state(r, plain).tcp - far.pos, axis=-1)
+    assert np.mean(gap) <= np.mean(plain_gap) + 0.01, (np.mean(gap), np.mean(plain_gap))

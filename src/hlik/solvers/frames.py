@@ -134,6 +134,9 @@ def iterate(
 # tenth of a radian of the costliest joint, a torque row missed by 0.1 N m as much as 0.1 rad
 COLLISION_PENALTY = 1e6  # per m^2
 TORQUE_PENALTY = 1.0  # per (N m)^2
+# a hand out of its tolerance band by 1 mm (or 1 mrad) costs as much as a tenth of a radian of the
+# costliest joint: below the body, above everything the criteria can buy
+BAND_PENALTY = 1e4  # per m^2 or rad^2
 
 
 @dataclass(frozen=True, eq=False)
@@ -156,6 +159,8 @@ def constrained_steps(
     max_step: float,
     a_col: np.ndarray,
     b_col: np.ndarray,
+    a_band: np.ndarray | None = None,
+    b_band: np.ndarray | None = None,
 ) -> list[StepConstraints]:
     """What a step from ``q`` (n,) inside ``box`` tries to keep, in order: (1) every row, the box's
     (torque) and the collision rows ``a_col``, ``b_col`` (k, n), (k,) (:func:`collision_rows`);
@@ -165,17 +170,24 @@ def constrained_steps(
     penalty (the body before the torque). (3) is always feasible. The QP and JV take the first
     their solver can meet. The box itself always holds: an acceleration limit given up for the
     margin was a jump of 40 times the limit, for a miss of the margin by 0.1 mm; and a row
-    relaxed to "no worse than the step's start" let the arm coast into the body at its speed."""
+    relaxed to "no worse than the step's start" let the arm coast into the body at its speed.
+
+    ``a_band``, ``b_band`` (k, n), (k,): the hands' tolerance band, soft in every try
+    (:data:`BAND_PENALTY`), so that it never makes a step infeasible."""
     lower, upper = box.step_bounds(q, max_step)
     a_box, b_box = box.step_rows(q)
-    a, b = np.vstack([a_box, a_col]), np.concatenate([b_box, b_col])
-    tries = [StepConstraints(lower, upper, a, b)]
+    if a_band is None or b_band is None:
+        a_band, b_band = np.zeros((0, len(q))), np.zeros(0)
+    a, b = np.vstack([a_box, a_col, a_band]), np.concatenate([b_box, b_col, b_band])
+    band = np.full(len(b_band), BAND_PENALTY)
     hard, collision = np.zeros(len(b_box)), np.full(len(b_col), COLLISION_PENALTY)
+    first = np.concatenate([hard, np.zeros(len(b_col)), band]) if len(b_band) else None
+    tries = [StepConstraints(lower, upper, a, b, first)]
     if len(b_col):
-        tries.append(StepConstraints(lower, upper, a, b, np.concatenate([hard, collision])))
+        tries.append(StepConstraints(lower, upper, a, b, np.concatenate([hard, collision, band])))
     if len(b_box):
         torque = np.full(len(b_box), TORQUE_PENALTY)
-        tries.append(StepConstraints(lower, upper, a, b, np.concatenate([torque, collision])))
+        tries.append(StepConstraints(lower, upper, a, b, np.concatenate([torque, collision, band])))
     return tries
 
 

@@ -68,6 +68,11 @@ class QPSettings(LimitSettings):
         tol: A frame has converged when no joint moves more than this in a step, rad.
         max_step: Bound on any joint's change in one step, rad.
         solver: qpsolvers backend.
+        position_band, orientation_band: The hands' tolerance band, m and rad (0: none, the
+            paper's weighted form): where the targets can be met, each target term's error after
+            the step stays within it, component by component within band / sqrt(3) (so its norm
+            within band), as inequalities with a slack that grows only where the band cannot
+            be met (:data:`~hlik.solvers.frames.BAND_PENALTY`); the criteria act inside it.
         self_collision: Keep every pair of the robot's collision geoms ``collision_margin`` apart
             (m), as linear inequalities on the step from their signed distances and gradients
             (the velocity damper of mink's ``CollisionAvoidanceLimit``: a pair closer than
@@ -88,6 +93,8 @@ class QPSettings(LimitSettings):
     velocity: float = 0.02
     acceleration: float = 0.01
     jerk: float = 0.005
+    position_band: float = 0.0
+    orientation_band: float = 0.0
     damping: float = 1e-6
     max_iter: int = 20
     tol: float = 1e-4
@@ -110,6 +117,8 @@ class QPSettings(LimitSettings):
                 "velocity",
                 "acceleration",
                 "jerk",
+                "position_band",
+                "orientation_band",
                 "damping",
                 "collision_margin",
             ),
@@ -201,8 +210,14 @@ def step(
     state = robot_state(robot, q, jacobians=bool(stack.sites), data=data, jacobian_sites=stack.sites)
     gradient = np.zeros(robot.dof)
     rows, errors = [], []
+    band_rows, band_bounds = [], []
     for term, w, gradient_map in zip(stack.terms, stack.weights, stack.gradient_maps):
         e, jac = term(state, frame)
+        band = _band(term, settings)
+        if band > 0.0:  # -b <= e + J dq <= b per component, in the term's weighted units
+            wj, we, wb = w * jac, w.ravel() * e, w.ravel() * band
+            band_rows += [wj, -wj]
+            band_bounds += [wb - we, wb + we]
         if gradient_map is not None:
             gradient += gradient_map @ e
         else:
@@ -218,13 +233,24 @@ def step(
     if pairs is not None and len(pairs):
         a_col, b_col = collision_rows(robot, data, pairs, bounds, settings, floors)  # q's kinematics in data
     dq = None
-    for c in constrained_steps(box, q, settings.max_step, a_col, b_col):
+    a_band = np.vstack(band_rows) if band_rows else np.zeros((0, robot.dof))
+    b_band = np.concatenate(band_bounds) if band_bounds else np.zeros(0)
+    for c in constrained_steps(box, q, settings.max_step, a_col, b_col, a_band, b_band):
         dq = solve_qp(hessian, gradient, c.lower, c.upper, settings.solver, c.rows, c.bound, c.soft)
         if dq is not None:
             break
     if dq is None or not np.all(np.isfinite(dq)):
         return np.zeros(robot.dof)  # infeasible or failed step: stay (limits hold, nothing NaN)
     return dq
+
+
+def _band(term: Term, settings: QPSettings) -> float:
+    """The per-component band of a target term under ``settings`` (0: none): position or
+    orientation band over sqrt(3)."""
+    if not getattr(term, "functional", False):
+        return 0.0
+    band = settings.orientation_band if term.name.startswith("fORI") else settings.position_band
+    return band / np.sqrt(3.0)
 
 
 def solve_qp(
