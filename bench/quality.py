@@ -5,20 +5,20 @@ An approach is a solver with the criteria it adds, e.g. ``jm``, ``qp``, ``qp+SYN
 (``--scenario``), or ``--stack``. Each take is cropped to ``--seconds`` after skipping the first second.
 ``fPOS reach`` is the median over frames whose target lies within 95 % of the arm's length from the
 robot's shoulder (the frames the robot can reach); ``--placement`` the rule placing the robot
-(``reach``, ``mapped``, ``optimize``, ``shoulders``, ``X,Y,YAW``; default the robot's); ``capped %``
-the share of frames that ended at the solver's iteration cap; ``speed`` the largest joint speed over
-its limit in any step (any take) and ``contact %`` the share of frames in self-collision. What a
-controller checks (:mod:`hlik.executable`): ``acc`` the largest joint acceleration over its limit,
-``acc>%`` the share of frames above an acceleration limit, ``tau`` the largest torque over its
-effort limit, ``tau>%`` the frames above one, ``stop %`` the frames with a joint within 0.5 deg of a
-stop, ``floor cm`` the lowest point of the robot against the floor (worst take), ``lag %`` the
-frames with a hand more than 5 cm off, ``fORI`` the median hand orientation error in degrees.
-Posture (:mod:`hlik.posture`, medians over the takes): ``lean`` the trunk lean's median difference
-from the subject's in degrees, ``behind %`` the frames with an elbow more than 5 cm behind the
-shoulders' frontal plane (either arm; ``subj %`` the subject's), ``hands``
-the hands' distance in front of the shoulders over the subject's (per arm length), ``path`` the
-arm joints' path over the mapped human pose's. An
-approach ``solver@stack+...`` takes its weights from that stack (``slsqp@paper_opt``).
+(``reach``, ``mapped``, ``working``, ``optimize``, ``shoulders``, ``X,Y,YAW``; default the robot's);
+``capped %`` the share of frames that ended at the solver's iteration cap; ``speed`` the largest
+joint speed over its limit in any step (any take) and ``contact %`` the share of frames in
+self-collision. What a controller checks (:mod:`hlik.executable`): ``acc`` the largest joint
+acceleration over its limit, ``acc>%`` the share of frames above an acceleration limit, ``tau`` the
+largest torque over its effort limit, ``tau>%`` the frames above one, ``stop %`` the frames with a
+joint within 0.5 deg of a stop, ``floor cm`` the lowest point of the robot against the floor (worst
+take), ``lag %`` the frames with a hand more than 5 cm off, ``fORI`` the median hand orientation
+error in degrees. Posture (:mod:`hlik.posture`, medians over the takes): ``lean`` the trunk lean's
+median difference from the subject's in degrees, ``behind %`` the frames with an elbow more than 5
+cm behind the shoulders' frontal plane (either arm; ``subj %`` the subject's), ``hands`` the hands'
+distance in front of the shoulders over the subject's (per arm length), ``path`` the arm joints'
+path over the mapped human pose's. An approach ``solver@stack+...`` takes its weights from that
+stack (``slsqp@paper_opt``).
 
 Run by hand: ``python bench/quality.py [--robots armar3,armar6] [--approaches qp,qp+SYN]
 [--set criterion_cost=0.1]`` (``--set`` overrides a field of the solvers' settings; ``--set

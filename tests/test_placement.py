@@ -22,6 +22,8 @@ from hlik.problem.placement import (
     placement_from_spec,
     reach_placement,
     shoulder_placement,
+    working_distances,
+    working_placement,
     yaw_rotation,
 )
 from hlik.problem.problem import build_problem
@@ -167,3 +169,37 @@ def test_a_problem_is_placed_by_the_robots_own_rule(name):
     robot = load_robot(name)
     problem = build_problem(demo_motion().crop(1.0, 1.5), robot)
     assert problem.placement.method == robot.placement == ("mapped" if name == "dual_panda" else "reach")
+
+
+def _working_miss(robot, human, placement) -> float:
+    """How far the robot's hands at its home shoulders, placed so, are from the subject's working
+    distances (ahead and beside, per arm length)."""
+    ids = robot.site_ids
+    home, _ = site_poses(robot.model, robot.home[None], ids[:, :3])
+    shoulder, elbow, wrist = (np.broadcast_to(home[:, :, i], (len(human.tcp_pos), 2, 3)) for i in range(3))
+    tcp = placement.to_base(human.tcp_pos.reshape(-1, 3)).reshape(-1, 2, 3)
+    robot_side = working_distances(shoulder, elbow, wrist, tcp)
+    subject = working_distances(human.shoulder, human.elbow, human.wrist, human.tcp_pos)
+    return float(np.sum(np.abs(robot_side - subject)))
+
+
+@pytest.mark.parametrize("name", ROBOTS)
+def test_working_placement_puts_the_hands_at_the_subjects_distance_inside_the_maps(name, takes):
+    """Among the well-reachable base poses, ``working`` is at least as close to the subject's working
+    distances as ``reach``, stands on the floor, and moves and turns with the motion."""
+    robot = load_robot(name)
+    motion = load_motion(takes[1]).crop(1.0, 4.0)
+    human = forward_kinematics(motion)
+    work, reach = working_placement(robot, human), reach_placement(robot, human)
+    assert work.method == "working" and work.translation[2] == floor_height(robot)
+    # 0.02: the rule looks at 100 of the frames, the check at all
+    assert _working_miss(robot, human, work) <= _working_miss(robot, human, reach) + 0.02, (
+        _working_miss(robot, human, work),
+        _working_miss(robot, human, reach),
+    )
+    turn, shift = yaw_rotation(1.1), np.array([-0.8, 2.0, 0.0])
+    moved = replace(
+        motion, root_position=motion.root_position @ turn.T + shift, root_rotation=turn @ motion.root_rotation
+    )
+    there = working_placement(robot, forward_kinematics(moved))
+    np.testing.assert_allclose(there.translation, turn @ work.translation + shift, atol=1e-9)

@@ -197,11 +197,12 @@ def run(
     placement: Annotated[
         str | None,
         typer.Option(
-            help="Where the robot stands: reach (reachability maps, the paper's), mapped (where the "
-            "mapped joint angles reach the hands), optimize (the best of those by m_hl,f of a fast QP "
-            "run), shoulders (on the human's), or X,Y,YAW (world m, m, deg); each stands the robot on "
-            "the floor. X,Y,YAW,Z also sets the base height (m; off the floor, warned). Default: the "
-            "robot's (robots/<name>.toml; reach, 2-Panda mapped).",
+            help="Where the robot stands: reach (reachability maps, the paper's), mapped (where "
+            "the mapped joint angles reach the hands), working (within the maps, the hands at the "
+            "subject's distance from the shoulders), optimize (the best of reach, mapped and others "
+            "by m_hl,f of a fast QP run), shoulders (on the human's), or X,Y,YAW (world m, m, deg); "
+            "each stands the robot on the floor. X,Y,YAW,Z also sets the base height (m; off the "
+            "floor, warned). Default: the robot's (robots/<name>.toml; reach, 2-Panda mapped).",
             show_default=False,
         ),
     ] = None,

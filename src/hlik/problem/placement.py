@@ -15,6 +15,9 @@ the subject is not sunk to the subject's shoulders: the subject is scaled to it
   filtered, and the best candidate wins.
 - ``mapped``: where the joint-mapped human pose puts the robot's hands on the human's (a trimmed
   least-squares fit over all frames).
+- ``working``: among the base poses ``reach`` scores at least :data:`WORKING_REACH` of its best, the
+  one that puts the hands where the subject works: in front of and beside the shoulders by the
+  subject's median distances as shares of the arm's length (:func:`working_placement`).
 - ``X,Y,YAW``: given by the user (:func:`placement_from_spec`); ``X,Y,YAW,Z`` also gives the base
   height, off the floor (:func:`placement_notes` says so). ``optimize``, which retargets from
   several of these, lives in :mod:`hlik.placement_search` (it needs a solver).
@@ -35,7 +38,10 @@ from hlik.robot.floor import FLOOR_TOLERANCE, floor_height
 from hlik.robot.model import SIDES, Robot, joint_mapping, tcp_poses
 from hlik.robot.reachability import ReachabilityMap, reachability_map
 
-PLACEMENTS = ("reach", "mapped", "shoulders")
+PLACEMENTS = ("reach", "mapped", "working", "shoulders")
+# the share of the best reach score a base pose of ``working`` must keep: the hands stay well inside
+# the reachability maps while the distance to them follows the subject's
+WORKING_REACH = 0.5
 
 
 @dataclass(frozen=True, eq=False)
@@ -193,6 +199,69 @@ def reach_scores(
     return score.reshape(len(yaws), -1), offsets, yaws, (r0, c0)
 
 
+def working_distances(
+    shoulder: np.ndarray, elbow: np.ndarray, wrist: np.ndarray, tcp: np.ndarray
+) -> np.ndarray:
+    """(2,) the hands' median distance in front of and beside the shoulders' midpoint (toward each
+    hand's own side), as shares of the arm's length, from joint centres (T, 2, 3) each, z up."""
+    mid = shoulder.mean(axis=1)
+    across = shoulder[:, 1] - shoulder[:, 0]
+    across /= np.linalg.norm(across, axis=-1, keepdims=True)
+    front = np.cross([0.0, 0.0, 1.0], across)
+    length = np.median(np.linalg.norm(elbow - shoulder, axis=-1) + np.linalg.norm(wrist - elbow, axis=-1))
+    rel = tcp - mid[:, None]
+    ahead = np.einsum("tai,ti->ta", rel, front)
+    side = np.einsum("tai,ti->ta", rel, across) * np.array([-1.0, 1.0])  # outward positive
+    return np.array([np.median(ahead), np.median(side)]) / length
+
+
+def working_placement(
+    robot: Robot,
+    human: HumanKinematics,
+    reach: ReachabilityMap | None = None,
+    search: ReachSearch = ReachSearch(),
+) -> Placement:
+    """The base pose among those :func:`reach_scores` rates at least :data:`WORKING_REACH` of the
+    best that puts the motion's hands at the subject's working distances
+    (:func:`working_distances`: ahead of and beside the shoulders, per arm length), the robot's
+    measured from its shoulders at home; ties go to the better reach score.
+
+    ``reach`` alone stands a robot where its arms have the most room, which for ARMAR-6 was its
+    hands at 0.9 of its arm's length in front of its shoulders against the subject's 0.6: arms
+    stretched and elbows lifted."""
+    score, offsets, yaws, (r0, c0) = reach_scores(robot, human, reach, search)
+    subject = working_distances(human.shoulder, human.elbow, human.wrist, human.tcp_pos)
+    ids = robot.site_ids  # (2, 5): shoulder, elbow, wrist, tcp, manipulability
+    home, _ = site_poses(robot.model, robot.home[None], ids[:, :3])
+    shoulder, elbow, wrist = home[0, :, 0], home[0, :, 1], home[0, :, 2]
+    mid = shoulder.mean(axis=0)
+    across = (shoulder[1] - shoulder[0]) / np.linalg.norm(shoulder[1] - shoulder[0])
+    front = np.cross([0.0, 0.0, 1.0], across)
+    length = float(
+        np.mean(np.linalg.norm(elbow - shoulder, axis=-1) + np.linalg.norm(wrist - elbow, axis=-1))
+    )
+    frames = np.unique(np.linspace(0, len(human.tcp_pos) - 1, search.n_targets).astype(int))
+    pos = human.tcp_pos[frames]  # (N, 2, 3)
+    best = (np.inf, -np.inf, 0, 0)
+    good = score >= WORKING_REACH * score.max()
+    for k, yaw in enumerate(yaws):
+        if not good[k].any():
+            continue
+        r = yaw_rotation(yaw) @ r0
+        local = (pos - c0) @ r  # hands in the candidate's axes, from the search origin
+        shift = offsets[good[k]] @ yaw_rotation(yaw)  # (m, 3) candidate origins in their own axes
+        rel = local[None] - shift[:, None, None] - mid  # (m, N, 2, 3) hands from the home shoulders
+        ahead = np.median(rel @ front, axis=(1, 2)) / length
+        side = np.median((rel @ across) * np.array([-1.0, 1.0]), axis=(1, 2)) / length
+        miss = np.abs(ahead - subject[0]) + np.abs(side - subject[1])
+        j = int(np.argmin(miss - 1e-6 * score[k, good[k]]))
+        i = int(np.flatnonzero(good[k])[j])
+        if (miss[j], -score[k, i]) < (best[0], -best[1]):
+            best = (float(miss[j]), float(score[k, i]), k, i)
+    _, _, k, i = best
+    return Placement(yaw_rotation(yaws[k]) @ r0, c0 + r0 @ offsets[i], "working")
+
+
 def mapped_placement(robot: Robot, motion: HumanMotion, human: HumanKinematics | None = None) -> Placement:
     """Where the human's own joint angles put the robot's hands on the human's: the upright base
     pose that best fits the TCP positions of the joint mapping (JM, base frame) onto the human hand
@@ -235,6 +304,8 @@ def placement_from_spec(
         return reach_placement(robot, human)
     if spec == "mapped":
         return mapped_placement(robot, motion, human)
+    if spec == "working":
+        return working_placement(robot, human)
     if spec == "shoulders":
         return shoulder_placement(robot, human)
     try:
