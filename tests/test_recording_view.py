@@ -229,3 +229,12 @@ def test_object_labels_drop_true_and_sit_above_the_box(run):
         z_box = np.array([v[0][2] if isinstance(v[0], list) else v[2] for v in box])
         z_label = np.array([v[0][2] if isinstance(v[0], list) else v[2] for v in above])
         assert np.all(z_label > z_box)
+
+
+def test_the_posture_measures_are_logged_for_the_robot_and_the_subject(run):
+    _, ev, _, _, temporal = run
+    for who, body in (("robot", ev.posture.robot), ("subject", ev.posture.subject)):
+        np.testing.assert_allclose(_scalars(temporal[f"/plots/posture/{who}_lean"]), body.lean)
+        for i, side in enumerate(("left", "right")):
+            logged = _scalars(temporal[f"/plots/posture/{who}_{side}_elbow"])
+            np.testing.assert_allclose(logged, body.elbow_front_share[:, i])

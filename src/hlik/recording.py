@@ -16,6 +16,9 @@ Entity tree::
     /plots/fPOS_off, /plots/fORI_off     relative-pose errors (paper Eqs. 3-4), relative runs only
     /plots/metrics/<criterion>      per-frame scores f_x0(h(t)) of the criteria, in [0, 1]
     /plots/unified/{m_hl,m_f}       per-frame weighted scores whose means are m_hl and m_f
+    /plots/posture/<who>_<side>_{elbow,hand}, /plots/posture/<who>_lean   posture measures of the
+                                    robot and the subject (hlik.posture): elbow and hand ahead of the
+                                    shoulders in arm lengths, trunk lean in rad
     /plots/solver/{iterations,failed}   solver diagnostics per frame
     /result                         markdown: motion, robot, solver, settings, scores, diagnostics
     /result/json                    the ``hlik evaluate --json`` object of the same evaluation
@@ -259,6 +262,8 @@ def blueprint(
         if shown:
             contents = [f"/plots/metrics/{_entity(c)}" for c in shown]
             scores.append(_plot("/plots/metrics", f"scores: {title}", contents))
+    if unified:
+        scores.append(_plot("/plots/posture", "posture: elbows, hands ahead of the shoulders; trunk lean"))
     scores.append(_plot("/plots/solver", "solver: iterations per frame, failed"))
     if fitted:
         scores.append(_plot("/plots/fit", "MMM fit: largest elbow/wrist error (m)"))
@@ -481,6 +486,17 @@ def _log(
         m_hl, m_f = unified_curves(evaluation)
         curves[_curve(rec, "/plots/unified/m_hl", "m_hl(t) (score)", PALETTE[0])] = m_hl
         curves[_curve(rec, "/plots/unified/m_f", "m_f(t) (score)", PALETTE[1])] = m_f
+        for who, body, colors in (
+            ("robot", evaluation.posture.robot, SIDE_COLORS),
+            ("subject", evaluation.posture.subject, TARGET_COLORS),
+        ):
+            for i, side in enumerate(SIDES):
+                for part, values in (("elbow", body.elbow_front_share), ("hand", body.hand_front_share)):
+                    label = f"{who} {side} {part} ahead (arm lengths)"
+                    entity = _curve(rec, f"/plots/posture/{who}_{side}_{part}", label, colors[side])
+                    curves[entity] = values[:, i]
+            entity = _curve(rec, f"/plots/posture/{who}_lean", f"{who} trunk lean (rad)", colors["left"])
+            curves[entity] = body.lean
     if fit is not None:
         curves[_curve(rec, "/plots/fit/error", "fit error (m)", PALETTE[0])] = fit
     d = traj.diagnostics
