@@ -16,6 +16,7 @@ from hlik.criteria import registry
 from hlik.criteria.unified import Metric, load_metric
 from hlik.errors import HlikError
 from hlik.paths import demo_motion_path
+from hlik.robot.model import SIDES
 from hlik.study.analysis import hierarchy_weights, spearman, ward
 from hlik.study.approaches import Approach, load_approaches
 from hlik.study.runner import plan, run_cells, run_study
@@ -144,7 +145,11 @@ def test_a_tiny_study_writes_cells_metric_and_report(tiny):
     expected = {f"h_{n}" for n in (*NAMES, *registry.functional())}
     expected |= {"take", "robot", "approach", "frame", "time", "fpos_left", "fpos_right", "iterations"}
     expected |= {"converged", "failed", "solve_time", "collision", "speed_ratio", "scenario", "solver"}
+    for who in ("robot", "subject"):
+        expected |= {f"lean_{who}"}
+        expected |= {f"{m}_{side}_{who}" for m in ("elbow_front", "hand_front", "swivel") for side in SIDES}
     assert set(table.schema.names) == expected
+    assert np.all(np.isfinite(table.column("lean_robot").to_numpy()))
     assert table.num_rows == 101 and np.all(np.isfinite(table.column("h_SYN").to_numpy()))
     assert sum(result.metric.weights.values()) == pytest.approx(1.0)
     assert all(v > 0 for v in result.metric.x0.values())
@@ -249,3 +254,17 @@ def test_ray_gives_the_in_process_result(tiny, tmp_path):
             if name != "solve_time":
                 assert a.column(name).equals(b.column(name)), name
     assert not any(o.error for o in result.outcomes)
+
+
+def test_cells_without_the_posture_columns_still_read_with_new_ones(tiny, tmp_path):
+    """A cell an older hlik wrote (no posture columns) is read beside new ones, nulls in its rows."""
+    from hlik.study.dataset import read_dataset
+
+    out, _ = tiny
+    new = sorted((out / "cells").glob("*.parquet"))[0]
+    table = pq.read_table(new)
+    old = tmp_path / "old.parquet"
+    pq.write_table(table.drop_columns([c for c in table.schema.names if c.startswith("lean_")]), old)
+    both = read_dataset([new, old])
+    assert both.num_rows == 2 * table.num_rows
+    assert both.column("lean_robot").null_count == table.num_rows

@@ -2,10 +2,12 @@
 
 A cell's table has one row per frame: ``take``, ``robot``, ``approach``, ``solver``, ``scenario``,
 ``frame``, ``time`` (s), ``h_<criterion>`` for every registered criterion (functional ones included;
-units of the criterion's cost), ``fpos_left`` and ``fpos_right`` (m), ``iterations``,
-``converged``, ``failed``, ``solve_time`` (s), ``collision`` and ``speed_ratio`` (the step into the
-frame; 0 at the first). Files are written whole or not at all, so a rerun skips finished cells and a
-crash loses one cell.
+units of the criterion's cost), ``fpos_left`` and ``fpos_right`` (m), ``iterations``, ``converged``,
+``failed``, ``solve_time`` (s), ``collision`` and ``speed_ratio`` (the step into the frame; 0 at the
+first), and the posture measures (:mod:`hlik.posture`) of the robot and the subject: ``lean_robot``,
+``lean_subject`` (rad), ``elbow_front_<side>_<who>``, ``hand_front_<side>_<who>`` (arm lengths) and
+``swivel_<side>_<who>`` (rad; NaN where undefined). Files are written whole or not at all, so a
+rerun skips finished cells and a crash loses one cell.
 """
 
 from __future__ import annotations
@@ -109,6 +111,12 @@ def run_cell(
         "collision": ev.collisions.astype(bool),
         "speed_ratio": np.concatenate([[0.0], ev.speed_ratio]),
     }
+    for who, body in (("robot", ev.posture.robot), ("subject", ev.posture.subject)):
+        columns[f"lean_{who}"] = body.lean
+        for i, side in enumerate(("left", "right")):
+            columns[f"elbow_front_{side}_{who}"] = body.elbow_front_share[:, i]
+            columns[f"hand_front_{side}_{who}"] = body.hand_front_share[:, i]
+            columns[f"swivel_{side}_{who}"] = body.swivel[:, i]
     meta = {
         "hlik": __version__,
         "placement": traj.placement.method,
@@ -129,5 +137,7 @@ def write_cell(table: pa.Table, path: Path) -> Path:
 
 
 def read_dataset(paths: list[Path]) -> pa.Table:
-    """The cells' tables, concatenated."""
-    return pa.concat_tables([pq.read_table(p) for p in paths]) if paths else pa.table({})
+    """The cells' tables, concatenated; a column some cells lack (a cell written by an older hlik,
+    before the posture measures) is null in their rows."""
+    tables = [pq.read_table(p) for p in paths]
+    return pa.concat_tables(tables, promote_options="default") if tables else pa.table({})
