@@ -106,3 +106,19 @@ def test_the_joint_mapping_moves_as_far_as_the_person(takes):
     measured = posture(traj, r).to_json()
     assert measured["path_ratio"] == pytest.approx(path_ratio(traj, r))
     assert len(measured["elbow_front_share"]) == 2
+
+
+@settings(max_examples=50, deadline=None)
+@given(st.lists(st.floats(-2, 2), min_size=6, max_size=6))
+def test_the_shoulder_axes_are_horizontal_orthonormal_and_right_handed(values):
+    from hlik.human.kinematics import shoulder_axes
+
+    left, right = np.array(values[:3]), np.array(values[3:])
+    if np.hypot(*(right - left)[:2]) < 1e-3:
+        return
+    across, front = shoulder_axes(left, right)
+    assert across[2] == 0.0 and front[2] == 0.0
+    np.testing.assert_allclose(
+        [np.linalg.norm(across), np.linalg.norm(front), across @ front], [1, 1, 0], atol=1e-12
+    )
+    np.testing.assert_allclose(np.cross(across, front), [0.0, 0.0, 1.0], atol=1e-12)

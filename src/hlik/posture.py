@@ -3,7 +3,8 @@ sit against its shoulders, each against the subject's own value at the same fram
 
 Both bodies are measured in their own frames, z up: the robot in its base frame, the subject in the
 world. The **frontal plane** contains both shoulders and the vertical; its normal f, horizontal, points
-forward (``f = z × (shoulder_right − shoulder_left)``, normalised; x right, y forward, z up). With
+forward (``f = z × (shoulder_right − shoulder_left)``, normalised,
+:func:`hlik.human.kinematics.shoulder_axes`; x right, y forward, z up). With
 S the shoulders' midpoint and L an arm's length (shoulder to elbow plus elbow to wrist):
 
 - **trunk lean** (rad, forward positive): the trunk axis' angle from the vertical in the plane of f
@@ -32,7 +33,7 @@ import numpy as np
 from hlik.criteria.angles import joint_difference
 from hlik.criteria.eea import swivel_angle
 from hlik.fk import site_poses
-from hlik.human.kinematics import forward_kinematics
+from hlik.human.kinematics import forward_kinematics, shoulder_axes
 from hlik.robot.model import Robot
 from hlik.robot.state import robot_state
 from hlik.trajectory import Trajectory
@@ -118,9 +119,7 @@ def body_posture(
     trunk axis (T, 3) (any length, pointing up the trunk); ``arm_length`` (2,), m: default the
     median over the frames."""
     mid = shoulder.mean(axis=1)  # (T, 3)
-    across = shoulder[:, 1] - shoulder[:, 0]
-    front = np.cross(UP, across)
-    front /= np.linalg.norm(front, axis=-1, keepdims=True)
+    _, front = shoulder_axes(shoulder[:, 0], shoulder[:, 1])
     lean = np.arctan2(np.einsum("ti,ti->t", trunk, front), trunk @ UP)
     if arm_length is None:
         lengths = np.linalg.norm(elbow - shoulder, axis=-1) + np.linalg.norm(wrist - elbow, axis=-1)

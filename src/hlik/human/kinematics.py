@@ -86,6 +86,18 @@ def forward_kinematics(motion: HumanMotion) -> HumanKinematics:
     return HumanKinematics(pos[:, 0], pos[:, 1], pos[:, 2], pos[:, 3], rot[:, 3])
 
 
+def shoulder_axes(left: np.ndarray, right: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The horizontal unit vectors (..., 3) toward the right shoulder and forward (z x right) of a
+    body z up, from its shoulder positions (..., 3) each; the frontal plane's in-plane and normal
+    directions (NaN where the shoulders coincide in the horizontal plane)."""
+    across = np.asarray(right, dtype=float) - np.asarray(left, dtype=float)
+    across = across * np.array([1.0, 1.0, 0.0])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        across = across / np.linalg.norm(across, axis=-1, keepdims=True)
+    front = np.stack([-across[..., 1], across[..., 0], np.zeros(across.shape[:-1])], axis=-1)
+    return across, front
+
+
 def shoulder_frame(left: np.ndarray, right: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Upright frame at the shoulder midpoint: x towards the right shoulder, y forward, z up.
 

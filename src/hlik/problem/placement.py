@@ -32,7 +32,7 @@ from scipy.ndimage import uniform_filter
 
 from hlik.errors import SettingsError
 from hlik.fk import site_poses
-from hlik.human.kinematics import HumanKinematics, forward_kinematics, shoulder_frame
+from hlik.human.kinematics import HumanKinematics, forward_kinematics, shoulder_axes, shoulder_frame
 from hlik.human.motion import HumanMotion
 from hlik.robot.floor import FLOOR_TOLERANCE, floor_height
 from hlik.robot.model import SIDES, Robot, joint_mapping, tcp_poses
@@ -205,9 +205,7 @@ def working_distances(
     """(2,) the hands' median distance in front of and beside the shoulders' midpoint (toward each
     hand's own side), as shares of the arm's length, from joint centres (T, 2, 3) each, z up."""
     mid = shoulder.mean(axis=1)
-    across = shoulder[:, 1] - shoulder[:, 0]
-    across /= np.linalg.norm(across, axis=-1, keepdims=True)
-    front = np.cross([0.0, 0.0, 1.0], across)
+    across, front = shoulder_axes(shoulder[:, 0], shoulder[:, 1])
     length = np.median(np.linalg.norm(elbow - shoulder, axis=-1) + np.linalg.norm(wrist - elbow, axis=-1))
     rel = tcp - mid[:, None]
     ahead = np.einsum("tai,ti->ta", rel, front)
@@ -235,8 +233,7 @@ def working_placement(
     home, _ = site_poses(robot.model, robot.home[None], ids[:, :3])
     shoulder, elbow, wrist = home[0, :, 0], home[0, :, 1], home[0, :, 2]
     mid = shoulder.mean(axis=0)
-    across = (shoulder[1] - shoulder[0]) / np.linalg.norm(shoulder[1] - shoulder[0])
-    front = np.cross([0.0, 0.0, 1.0], across)
+    across, front = shoulder_axes(shoulder[0], shoulder[1])
     length = float(
         np.mean(np.linalg.norm(elbow - shoulder, axis=-1) + np.linalg.norm(wrist - elbow, axis=-1))
     )
