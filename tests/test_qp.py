@@ -213,3 +213,24 @@ def test_targets_out_of_the_band_s_reach_lag_without_failing(takes):
     plain, _ = solve_problem(qp.solve, r, motion, far, placement, QPSettings())
     plain_gap = np.linalg.norm(robot_state(r, plain).tcp - far.pos, axis=-1)
     assert np.mean(gap) <= np.mean(plain_gap) + 0.01, (np.mean(gap), np.mean(plain_gap))
+
+
+def test_the_trunk_term_holds_armar3_upright_and_is_absent_elsewhere(takes):
+    """``trunk_cost`` adds the extra joints toward home: ARMAR-III (hip) leans less with it; the
+    robots without extra joints get no term."""
+    from hlik.criteria.joints import TrunkUpright
+    from hlik.posture import robot_posture
+    from hlik.solvers.qp import build_terms
+
+    for name in ("armar6", "dual_panda"):
+        r = load_robot(name)
+        assert not any(isinstance(t, TrunkUpright) for t in build_terms(r, QPSettings(trunk_cost=1.0), None))
+    r = load_robot("armar3")
+    assert any(isinstance(t, TrunkUpright) for t in build_terms(r, QPSettings(trunk_cost=1.0), None))
+    motion = load_motion(takes[1], rate=100.0).crop(1.0, 2.5)
+    lean = {}
+    for cost in (0.0, 3.0):
+        settings = QPSettings(criteria=("SYN", "HJA_r"), trunk_cost=cost)
+        traj = retarget(motion, r, qp_solver(settings, learn(r)))
+        lean[cost] = np.median(np.abs(robot_posture(r, traj.q).lean))
+    assert lean[3.0] < 0.7 * lean[0.0], lean

@@ -22,6 +22,7 @@ import qpsolvers
 from hlik.criteria import registry, unified
 from hlik.criteria.base import Sample, Term
 from hlik.criteria.functional import target_terms
+from hlik.criteria.joints import TrunkUpright
 from hlik.criteria.learned import Learned, learn
 from hlik.criteria.smoothness import smoothness_terms
 from hlik.errors import SettingsError
@@ -63,6 +64,8 @@ class QPSettings(LimitSettings):
             ``gamma_i * criterion_cost / len(criteria) * ||e_i||^2`` (divided by the number of
             criteria as in the paper; its least-squares cost is the square root).
         velocity, acceleration, jerk: Weights of the smoothness terms.
+        trunk_cost: Weight per rad of the extra (trunk) joints toward home
+            (:class:`~hlik.criteria.joints.TrunkUpright`; 0: none).
         damping: Levenberg-Marquardt damping of every step.
         max_iter: QP steps per frame at most (the first frame gets ten times more).
         tol: A frame has converged when no joint moves more than this in a step, rad.
@@ -93,6 +96,7 @@ class QPSettings(LimitSettings):
     velocity: float = 0.02
     acceleration: float = 0.01
     jerk: float = 0.005
+    trunk_cost: float = 0.0
     position_band: float = 0.0
     orientation_band: float = 0.0
     damping: float = 1e-6
@@ -117,6 +121,7 @@ class QPSettings(LimitSettings):
                 "velocity",
                 "acceleration",
                 "jerk",
+                "trunk_cost",
                 "position_band",
                 "orientation_band",
                 "damping",
@@ -159,6 +164,10 @@ def build_terms(
         position.cost_weight, orientation.cost_weight = settings.position_cost, settings.orientation_cost
     terms: list[Term] = [t for t in (position, orientation) if np.all(np.asarray(t.cost_weight) > 0)]
     terms += smoothness_terms(robot, settings.velocity, settings.acceleration, settings.jerk)
+    if settings.trunk_cost > 0 and robot.extra_joints:
+        trunk = TrunkUpright(robot)
+        trunk.cost_weight = settings.trunk_cost
+        terms.append(trunk)
     for name in settings.criteria:
         term = registry.criterion(name, robot, learned)
         if first and term.motion:
