@@ -539,3 +539,5 @@ def test_the_controller_row_says_how_the_motion_ends():
     assert moving.stop_time == pytest.approx(0.25)
     assert "ends moving at up to 0.50 rad/s (0.25 s to stop" in _controller_line(moving)
     assert _checks(10).stop_time == 0.0 and "ends at rest" in _controller_line(_checks(10))
+    backward = _checks(10, end_speed=np.array([-0.5]), acceleration_limit=np.array([2.0]))
+    assert backward.stop_time == pytest.approx(0.25)  # a joint moving the other way stops as long

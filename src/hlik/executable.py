@@ -111,7 +111,8 @@ class ControllerChecks:
         """How long the joints still moving at the last frame need to stop at their acceleration
         limits, s (0 at rest; ``inf`` if a moving joint has no limit)."""
         with np.errstate(divide="ignore", invalid="ignore"):
-            times = np.where(self.end_speed > 0, np.abs(self.end_speed) / self.acceleration_limit, 0.0)
+            speed = np.abs(self.end_speed)
+            times = np.where(speed > 0, speed / self.acceleration_limit, 0.0)
         return float(np.max(times, initial=0.0))
 
     @property
