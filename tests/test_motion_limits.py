@@ -86,6 +86,25 @@ def test_every_bundled_robot_has_acceleration_and_effort_limits():
     assert np.all(np.isfinite(panda.jerk_limit)) and "libfranka" in panda.jerk_source
 
 
+def _walk(limits, dt: float, steps: int, greedy: str, rng):
+    """A walk through the frames' boxes of ``limits`` from home (clipped into the margin): each
+    frame's configuration at the top of its box (``up``), the bottom (``down``) or anywhere in it
+    (``random``); yields the box, the configuration and the three before it, newest first."""
+    r = limits.robot
+    q3 = q2 = q1 = np.clip(r.home, limits.inner_lower, limits.inner_upper)
+    for _ in range(steps):
+        box = limits.box(q1, q2, dt, q3=q3)
+        if greedy == "up":
+            q = box.upper.copy()
+        elif greedy == "down":
+            q = box.lower.copy()
+        else:
+            q = box.lower + rng.random(r.dof) * (box.upper - box.lower)
+        q = np.where(np.isfinite(q), q, q1)  # unlimited joints: any finite choice
+        yield box, q, q1, q2, q3
+        q3, q2, q1 = q2, q1, q
+
+
 @settings(max_examples=30, deadline=None)
 @given(
     name=st.sampled_from(ROBOTS),
@@ -97,19 +116,9 @@ def test_a_walk_through_the_boxes_never_breaks_a_limit_and_brakes_before_the_sto
     the stops; one driven at full effort toward a stop comes to rest inside the margin."""
     r = load_robot(name)
     limits = MotionLimits.of(r, LimitSettings(torque_limits=False))
-    rng = np.random.default_rng(seed)
     dt = 0.01
-    q3 = q2 = q1 = np.clip(r.home, limits.inner_lower, limits.inner_upper)
-    for _ in range(400):
-        box = limits.box(q1, q2, dt, q3=q3)
+    for box, q, q1, q2, q3 in _walk(limits, dt, 400, greedy, np.random.default_rng(seed)):
         assert np.all(box.lower <= box.upper + 1e-12)
-        if greedy == "up":
-            q = box.upper.copy()
-        elif greedy == "down":
-            q = box.lower.copy()
-        else:
-            q = box.lower + rng.random(r.dof) * (box.upper - box.lower)
-        q = np.where(np.isfinite(q), q, q1)  # unlimited joints: any finite choice
         v, v1 = (q - q1) / dt, (q1 - q2) / dt
         assert np.all(np.abs(v) <= r.velocity_limit * (1 + 1e-9))
         assert np.all(np.abs(v - v1) <= r.acceleration_limit * dt * (1 + 1e-9) + 1e-12)
@@ -118,12 +127,11 @@ def test_a_walk_through_the_boxes_never_breaks_a_limit_and_brakes_before_the_sto
         assert np.all(q <= limits.inner_upper + 1e-9) and np.all(q >= limits.inner_lower - 1e-9)
         jerk = np.abs((q - 2 * q1 + q2) - (q1 - 2 * q2 + q3)) / dt**3
         assert np.all(jerk <= r.jerk_limit * (1 + 1e-9))
-        q3, q2, q1 = q2, q1, q
     if greedy != "random":  # 4 s at full effort: every limited joint has come to rest at the margin
         limited = np.isfinite(r.lower)
         stop = limits.inner_upper if greedy == "up" else limits.inner_lower
-        np.testing.assert_allclose(q1[limited], stop[limited], atol=1e-6)
-        assert np.max(np.abs(q1 - q2)[limited]) / dt < 1e-3
+        np.testing.assert_allclose(q[limited], stop[limited], atol=1e-6)
+        assert np.max(np.abs(q - q1)[limited]) / dt < 1e-3
 
 
 @settings(max_examples=10, deadline=None)
@@ -134,13 +142,8 @@ def test_at_the_pandas_1_khz_the_boxes_keep_its_jerk_limits(seed, greedy):
     stops; braking with a bounded jerk may overrun the 3 deg margin by a fraction of a degree."""
     r = load_robot("dual_panda")
     limits = MotionLimits.of(r, LimitSettings(torque_limits=False))
-    rng = np.random.default_rng(seed)
     dt = 0.001
-    q3 = q2 = q1 = np.clip(r.home, limits.inner_lower, limits.inner_upper)
-    for _ in range(3000):
-        box = limits.box(q1, q2, dt, q3=q3)
-        pick = {"up": 1.0, "down": 0.0}.get(greedy, rng.random(r.dof))
-        q = box.lower + pick * (box.upper - box.lower)
+    for _, q, q1, q2, q3 in _walk(limits, dt, 3000, greedy, np.random.default_rng(seed)):
         a, a1 = (q - 2 * q1 + q2) / dt**2, (q1 - 2 * q2 + q3) / dt**2
         assert np.all(np.abs(a - a1) / dt <= r.jerk_limit * (1 + 1e-6))
         assert np.all(np.abs(a) <= r.acceleration_limit * (1 + 1e-6))
@@ -149,7 +152,6 @@ def test_at_the_pandas_1_khz_the_boxes_keep_its_jerk_limits(seed, greedy):
         assert np.all(q <= limits.inner_upper + np.radians(0.5)) and np.all(
             q >= limits.inner_lower - np.radians(0.5)
         )
-        q3, q2, q1 = q2, q1, q
 
 
 def test_the_braking_speed_stops_in_front_of_the_stop():

@@ -33,9 +33,9 @@ import numpy as np
 from hlik.criteria.angles import joint_difference
 from hlik.criteria.eea import swivel_angle
 from hlik.fk import site_poses
+from hlik.human.kinematics import arm_length as arm_lengths
 from hlik.human.kinematics import forward_kinematics, shoulder_axes
 from hlik.robot.model import Robot
-from hlik.robot.state import robot_state
 from hlik.trajectory import Trajectory
 
 BEHIND = 0.05  # m: an elbow this far behind the frontal plane is "behind the back"
@@ -122,8 +122,7 @@ def body_posture(
     _, front = shoulder_axes(shoulder[:, 0], shoulder[:, 1])
     lean = np.arctan2(np.einsum("ti,ti->t", trunk, front), trunk @ UP)
     if arm_length is None:
-        lengths = np.linalg.norm(elbow - shoulder, axis=-1) + np.linalg.norm(wrist - elbow, axis=-1)
-        arm_length = np.median(lengths, axis=0)
+        arm_length = np.median(arm_lengths(shoulder, elbow, wrist), axis=0)
     return BodyPosture(
         lean=lean,
         elbow_front=np.einsum("tai,ti->ta", elbow - mid[:, None], front),
@@ -135,15 +134,12 @@ def body_posture(
 
 def robot_posture(robot: Robot, q: np.ndarray) -> BodyPosture:
     """The :class:`BodyPosture` of ``robot`` at configurations ``q`` (T, n), in its base frame."""
-    state = robot_state(robot, q)
-    home = robot_state(robot, robot.home)
-    length = np.linalg.norm(home.elbow - home.shoulder, axis=-1)
-    length += np.linalg.norm(home.wrist - home.elbow, axis=-1)
-    shoulder_site = np.array([robot.site_id("left", "shoulder")])
-    _, rot = site_poses(robot.model, q, shoulder_site)
-    _, rot_home = site_poses(robot.model, robot.home[None], shoulder_site)
-    trunk = rot[:, 0] @ (rot_home[0, 0].T @ UP)  # the vertical at home, carried by the shoulders' body
-    return body_posture(state.shoulder, state.elbow, state.wrist, state.tcp, trunk, length[0])
+    ids = robot.site_ids[:, :4]  # (2, 4): shoulder, elbow, wrist, TCP
+    pos, rot = site_poses(robot.model, q, ids)  # one kinematics pass: (T, 2, 4, 3), (T, 2, 4, 3, 3)
+    home, rot_home = site_poses(robot.model, robot.home[None], ids)
+    length = arm_lengths(home[0, :, 0], home[0, :, 1], home[0, :, 2])
+    trunk = rot[:, 0, 0] @ (rot_home[0, 0, 0].T @ UP)  # the vertical at home, carried by the shoulders' body
+    return body_posture(pos[:, :, 0], pos[:, :, 1], pos[:, :, 2], pos[:, :, 3], trunk, length)
 
 
 def subject_posture(traj: Trajectory) -> BodyPosture:

@@ -98,6 +98,11 @@ def shoulder_axes(left: np.ndarray, right: np.ndarray) -> tuple[np.ndarray, np.n
     return across, front
 
 
+def arm_length(shoulder: np.ndarray, elbow: np.ndarray, wrist: np.ndarray) -> np.ndarray:
+    """(...) each arm's length, shoulder to elbow plus elbow to wrist, from joint centres (..., 3)."""
+    return np.linalg.norm(elbow - shoulder, axis=-1) + np.linalg.norm(wrist - elbow, axis=-1)
+
+
 def shoulder_frame(left: np.ndarray, right: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Upright frame at the shoulder midpoint: x towards the right shoulder, y forward, z up.
 

@@ -32,7 +32,13 @@ from scipy.ndimage import uniform_filter
 
 from hlik.errors import SettingsError
 from hlik.fk import site_poses
-from hlik.human.kinematics import HumanKinematics, forward_kinematics, shoulder_axes, shoulder_frame
+from hlik.human.kinematics import (
+    HumanKinematics,
+    arm_length,
+    forward_kinematics,
+    shoulder_axes,
+    shoulder_frame,
+)
 from hlik.human.motion import HumanMotion
 from hlik.robot.floor import FLOOR_TOLERANCE, floor_height
 from hlik.robot.model import SIDES, Robot, joint_mapping, tcp_poses
@@ -154,6 +160,21 @@ def reach_placement(
     return Placement(rotation, c0 + r0 @ offsets[i], "reach")
 
 
+def _target_frames(human: HumanKinematics, search: ReachSearch) -> np.ndarray:
+    """The frames of ``human`` whose hand poses the candidate grid is scored on (evenly spaced)."""
+    return np.unique(np.linspace(0, len(human.tcp_pos) - 1, search.n_targets).astype(int))
+
+
+def _in_candidates(
+    pos: np.ndarray, c0: np.ndarray, r0: np.ndarray, yaw: float, offsets: np.ndarray
+) -> np.ndarray:
+    """(m, N, 2, 3) hand positions ``pos`` (N, 2, 3, world) in the base frames of the candidates at
+    ``offsets`` (m, 3) of the search frame (``r0``, ``c0``) turned by ``yaw``."""
+    local = (pos - c0) @ (yaw_rotation(yaw) @ r0)  # from the search origin, candidate axes
+    shift = offsets @ yaw_rotation(yaw)  # candidate origins in their own axes: Rz(-yaw) offset
+    return local[None] - shift[:, None, None]
+
+
 def reach_scores(
     robot: Robot,
     human: HumanKinematics,
@@ -170,7 +191,7 @@ def reach_scores(
     reach = reach or reachability_map(robot)
     start = shoulder_placement(robot, human)
     r0 = start.rotation
-    frames = np.unique(np.linspace(0, len(human.tcp_pos) - 1, search.n_targets).astype(int))
+    frames = _target_frames(human, search)
     pos, rot = human.tcp_pos[frames], human.tcp_rot[frames]  # (N, 2, 3), (N, 2, 3, 3)
     c0 = np.array([*pos.reshape(-1, 3).mean(axis=0)[:2], floor_height(robot)])
     g = np.arange(-search.radius, search.radius + 1e-9, search.step)
@@ -180,12 +201,10 @@ def reach_scores(
     ranked = np.empty((len(yaws), len(offsets), 2 * len(frames)), dtype=np.uint16)
     for k, yaw in enumerate(yaws):
         r = yaw_rotation(yaw) @ r0  # world <- candidate base
-        local = (pos - c0) @ r  # hand positions relative to the search origin, candidate axes
         base_rot = np.einsum("ji,nsjk->nsik", r, rot)
-        shift = offsets @ yaw_rotation(yaw)  # candidate origin in its own axes: Rz(-yaw) offset
+        hands = _in_candidates(pos, c0, r0, yaw, offsets)
         entries = np.concatenate(
-            [reach.lookup(s, local[None, :, s] - shift[:, None], base_rot[None, :, s]) for s in range(2)],
-            axis=1,
+            [reach.lookup(s, hands[:, :, s], base_rot[None, :, s]) for s in range(2)], axis=1
         )
         ranked[k] = np.sort(entries, axis=1)
     # The paper's minimum over all hand poses; where no candidate reaches them all, the minimum over
@@ -202,15 +221,19 @@ def reach_scores(
 def working_distances(
     shoulder: np.ndarray, elbow: np.ndarray, wrist: np.ndarray, tcp: np.ndarray
 ) -> np.ndarray:
-    """(2,) the hands' median distance in front of and beside the shoulders' midpoint (toward each
-    hand's own side), as shares of the arm's length, from joint centres (T, 2, 3) each, z up."""
-    mid = shoulder.mean(axis=1)
-    across, front = shoulder_axes(shoulder[:, 0], shoulder[:, 1])
-    length = np.median(np.linalg.norm(elbow - shoulder, axis=-1) + np.linalg.norm(wrist - elbow, axis=-1))
-    rel = tcp - mid[:, None]
-    ahead = np.einsum("tai,ti->ta", rel, front)
-    side = np.einsum("tai,ti->ta", rel, across) * np.array([-1.0, 1.0])  # outward positive
-    return np.array([np.median(ahead), np.median(side)]) / length
+    """(..., 2) the hands' median distance in front of and beside the shoulders' midpoint (toward
+    each hand's own side), as shares of the arm's length, from joint centres (..., T, 2, 3) each,
+    z up (medians over the frames and both arms)."""
+    mid = shoulder.mean(axis=-2)
+    across, front = shoulder_axes(shoulder[..., 0, :], shoulder[..., 1, :])
+    length = np.median(arm_length(shoulder, elbow, wrist), axis=(-2, -1))
+    rel = tcp - mid[..., None, :]
+    ahead = np.einsum("...tai,...ti->...ta", rel, front)
+    side = np.einsum("...tai,...ti->...ta", rel, across) * np.array([-1.0, 1.0])  # outward positive
+    return (
+        np.stack([np.median(ahead, axis=(-2, -1)), np.median(side, axis=(-2, -1))], axis=-1)
+        / length[..., None]
+    )
 
 
 def working_placement(
@@ -229,28 +252,16 @@ def working_placement(
     stretched and elbows lifted."""
     score, offsets, yaws, (r0, c0) = reach_scores(robot, human, reach, search)
     subject = working_distances(human.shoulder, human.elbow, human.wrist, human.tcp_pos)
-    ids = robot.site_ids  # (2, 5): shoulder, elbow, wrist, tcp, manipulability
-    home, _ = site_poses(robot.model, robot.home[None], ids[:, :3])
-    shoulder, elbow, wrist = home[0, :, 0], home[0, :, 1], home[0, :, 2]
-    mid = shoulder.mean(axis=0)
-    across, front = shoulder_axes(shoulder[0], shoulder[1])
-    length = float(
-        np.mean(np.linalg.norm(elbow - shoulder, axis=-1) + np.linalg.norm(wrist - elbow, axis=-1))
-    )
-    frames = np.unique(np.linspace(0, len(human.tcp_pos) - 1, search.n_targets).astype(int))
-    pos = human.tcp_pos[frames]  # (N, 2, 3)
+    home, _ = site_poses(robot.model, robot.home[None], robot.site_ids[:, :3])  # shoulder, elbow, wrist
+    pos = human.tcp_pos[_target_frames(human, search)]  # (N, 2, 3)
     best = (np.inf, -np.inf, 0, 0)
     good = score >= WORKING_REACH * score.max()
     for k, yaw in enumerate(yaws):
         if not good[k].any():
             continue
-        r = yaw_rotation(yaw) @ r0
-        local = (pos - c0) @ r  # hands in the candidate's axes, from the search origin
-        shift = offsets[good[k]] @ yaw_rotation(yaw)  # (m, 3) candidate origins in their own axes
-        rel = local[None] - shift[:, None, None] - mid  # (m, N, 2, 3) hands from the home shoulders
-        ahead = np.median(rel @ front, axis=(1, 2)) / length
-        side = np.median((rel @ across) * np.array([-1.0, 1.0]), axis=(1, 2)) / length
-        miss = np.abs(ahead - subject[0]) + np.abs(side - subject[1])
+        hands = _in_candidates(pos, c0, r0, yaw, offsets[good[k]])  # (m, N, 2, 3)
+        shoulder, elbow, wrist = (np.broadcast_to(home[0, :, i], hands.shape) for i in range(3))
+        miss = np.sum(np.abs(working_distances(shoulder, elbow, wrist, hands) - subject), axis=-1)
         j = int(np.argmin(miss - 1e-6 * score[k, good[k]]))
         i = int(np.flatnonzero(good[k])[j])
         if (miss[j], -score[k, i]) < (best[0], -best[1]):

@@ -21,7 +21,7 @@ import qpsolvers
 
 from hlik.criteria import registry, unified
 from hlik.criteria.base import Sample, Term
-from hlik.criteria.functional import target_terms
+from hlik.criteria.functional import fORI, fORI_off, fPOS, fPOS_off, target_terms
 from hlik.criteria.joints import TrunkUpright
 from hlik.criteria.learned import Learned, learn
 from hlik.criteria.smoothness import smoothness_terms
@@ -254,12 +254,13 @@ def step(
 
 
 def _band(term: Term, settings: QPSettings) -> float:
-    """The per-component band of a target term under ``settings`` (0: none): position or
-    orientation band over sqrt(3)."""
-    if not getattr(term, "functional", False):
-        return 0.0
-    band = settings.orientation_band if term.name.startswith("fORI") else settings.position_band
-    return band / np.sqrt(3.0)
+    """The per-component band of a target term under ``settings`` (0: none, and for every other
+    term): position or orientation band over sqrt(3)."""
+    if isinstance(term, fORI | fORI_off):
+        return settings.orientation_band / np.sqrt(3.0)
+    if isinstance(term, fPOS | fPOS_off):
+        return settings.position_band / np.sqrt(3.0)
+    return 0.0
 
 
 def solve_qp(
