@@ -137,3 +137,27 @@ def test_costs_in_chunks_equal_costs_in_one_pass(monkeypatch, takes):
     chunked = metrics.costs(traj, r, learned)
     for name, h in whole.items():
         np.testing.assert_allclose(chunked[name], h, rtol=1e-12, atol=1e-15, err_msg=name)
+
+
+def test_score_curves_of_motion_follow_the_motion_and_still_average_to_the_score(cut_take):
+    """On the QP's Cut take the per-frame MJE score flips by more than 0.3 between frames in a
+    tenth of the frames or more (its jerk sits near x0); over 0.2 s (21 frames) it flips in none,
+    every curve still averages to its m_i, and the criteria that are not of motion are unchanged."""
+    from hlik.criteria import registry
+    from hlik.solvers.qp import QPSettings, qp_solver
+
+    r = load_robot("dual_panda")
+    learned = learn(r)
+    motion = load_motion(cut_take, rate=100.0).crop(1.0, 4.0)
+    traj = retarget(motion, r, qp_solver(QPSettings(criteria=("SYN", "HJA_r")), learned))
+    ev = evaluate(traj, r, learned)
+    raw, shown = ev.curves(), ev.curves(21)
+    flips = lambda c: np.mean(np.abs(np.diff(c)) > 0.3)  # noqa: E731
+    assert flips(raw["MJE"]) > 0.1, flips(raw["MJE"])
+    assert flips(shown["MJE"]) == 0.0 and flips(shown["MIS"]) == 0.0
+    for name, curve in shown.items():
+        assert np.mean(curve) == pytest.approx(ev.m[name], abs=1e-12), name
+        if not registry.criterion_class(name).motion:
+            np.testing.assert_array_equal(curve, raw[name])
+    with pytest.raises(ValueError, match="odd"):
+        ev.curves(4)

@@ -183,7 +183,10 @@ def test_the_band_keeps_reachable_hands_on_target_while_the_criteria_shape_the_a
     motion = slowed(load_motion(takes[0], rate=100).crop(2.0, 2.5), 3.0).resample(100.0)
     targets = HandTargets(*tcp_poses(r, joint_mapping(r, motion)))
     placement = shoulder_placement(r, forward_kinematics(motion))
-    strong = QPSettings(criteria=("SYN", "HJA_r"), criterion_cost=1.0)
+    # the hands at 10 per m and 1 per rad: the stack's 30 and 5 already hold them against these criteria
+    strong = QPSettings(
+        criteria=("SYN", "HJA_r"), criterion_cost=1.0, position_cost=10.0, orientation_cost=1.0
+    )
     banded = replace(strong, position_band=0.005, orientation_band=np.radians(3.0))
     errors = {}
     for label, settings in (("free", strong), ("band", banded)):
@@ -229,8 +232,8 @@ def test_the_trunk_term_holds_armar3_upright_and_is_absent_elsewhere(takes):
     assert any(isinstance(t, TrunkUpright) for t in build_terms(r, QPSettings(trunk_cost=1.0), None))
     motion = load_motion(takes[1], rate=100.0).crop(1.0, 2.5)
     lean = {}
-    for cost in (0.0, 3.0):
+    for cost in (0.0, 10.0):
         settings = QPSettings(criteria=("SYN", "HJA_r"), trunk_cost=cost)
         traj = retarget(motion, r, qp_solver(settings, learn(r)))
         lean[cost] = np.median(np.abs(robot_posture(r, traj.q).lean))
-    assert lean[3.0] < 0.7 * lean[0.0], lean
+    assert lean[10.0] < 0.7 * lean[0.0], lean  # measured 27.5 -> 15.7 deg

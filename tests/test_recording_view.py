@@ -30,6 +30,7 @@ from hlik.recording import (
     object_label,
     robot_camera,
     scene_camera,
+    score_window,
     unified_curves,
     write_recording,
 )
@@ -107,13 +108,16 @@ def test_result_panel_holds_the_numbers_of_evaluate_json(run):
 
 def test_unified_curves_average_to_the_scores(run):
     traj, ev, _, _, temporal = run
-    m_hl, m_f = unified_curves(ev)
+    window = score_window(traj)
+    assert window == 21  # 0.2 s at 100 Hz
+    m_hl, m_f = unified_curves(ev, window)
     assert np.mean(m_hl) == pytest.approx(ev.m_hl, abs=1e-12)
     assert np.mean(m_f) == pytest.approx(ev.m_f, abs=1e-12)
     np.testing.assert_array_equal(_scalars(temporal["/plots/unified/m_hl"]), m_hl)
     np.testing.assert_array_equal(_scalars(temporal["/plots/unified/m_f"]), m_f)
-    for name, curve in ev.curves().items():  # evaluation's curves logged when no metrics are given
+    for name, curve in ev.curves(window).items():  # evaluation's curves logged when no metrics are given
         np.testing.assert_array_equal(_scalars(temporal[f"/plots/metrics/{name}"]), curve)
+        assert np.mean(curve) == pytest.approx(ev.m[name], abs=1e-12)
 
 
 def test_camera_is_in_front_and_frames_both_figures(run, armar6):

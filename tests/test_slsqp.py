@@ -8,10 +8,10 @@ import nlopt
 import numpy as np
 import pytest
 
-from conftest import ROBOTS, random_frame, solve_problem
+from conftest import ROBOTS, random_frame, slowed, solve_problem
 from hlik import load_motion, load_robot, retarget
 from hlik.criteria import registry
-from hlik.criteria.functional import relative_errors
+from hlik.criteria.functional import relative_errors, rotation_angle
 from hlik.criteria.learned import learn
 from hlik.criteria.smoothness import VELOCITY, Smoothness
 from hlik.human.kinematics import forward_kinematics
@@ -25,6 +25,7 @@ from hlik.robot.state import robot_state
 from hlik.solvers import frames, get_solver
 from hlik.solvers.frames import JointBox, joint_box, sample_at
 from hlik.solvers.slsqp import (
+    BandConstraint,
     BoxConstraint,
     Chart,
     CollisionConstraint,
@@ -344,3 +345,107 @@ def test_the_first_frame_reaches_its_targets_from_the_mapped_pose(cut_take):
     settings = replace(load_stack("ee_pose").settings("slsqp"), criteria=("SYN", "HJA_r"))
     traj = retarget(motion, robot, get_solver("slsqp", settings, learn(robot)))
     assert np.all(position_error(traj.tcp_pos[:1], traj.targets.pos[:1]) < 0.02)
+
+
+@pytest.mark.parametrize("scenario", ["pose", "relative"])
+@pytest.mark.parametrize("robot", ROBOTS)
+def test_the_bands_gradient_is_its_rows_and_the_start_is_feasible(robot, scenario):
+    """Each band row is a hand's error (norm of its residual) minus its bound: the analytic gradient
+    equals central differences, in q and in a chart's variables; relaxed, the start meets every row."""
+    rng = np.random.default_rng(5)
+    r, motion, placement, targets = _problem(robot, 2.0, 2.2)
+    settings = SLSQPSettings(scenario=scenario, position_band=0.005, orientation_band=0.05)
+    if scenario == "relative":
+        settings = SLSQPSettings.relative(position_band=0.005, orientation_band=0.05)
+    objective = Objective(r, build_losses(r, settings, None))
+    band = BandConstraint(r, objective.losses, settings)
+    assert len(band) == 2 if scenario == "relative" else len(band) == 4
+    ref = human_reference(r, motion, placement)
+    q = np.clip(ref.q_map[10] + rng.normal(0, 0.1, r.dof), r.lower, r.upper)
+    frame = sample_at(ref, targets, 10, np.tile(q, (3, 1)), 0.01)
+    band.reset(frame, q, None, strict=False)
+    values, grad = np.empty(len(band)), np.empty((len(band), r.dof))
+    band(values, q, grad)
+    assert np.all(values <= 1e-12)  # relaxed to the start: the start is feasible
+    eps = 1e-6
+    fd = np.empty((len(band), r.dof))
+    for j, d in enumerate(eps * np.eye(r.dof)):
+        hi, lo = np.empty(len(band)), np.empty(len(band))
+        band(hi, q + d, np.empty((0,)))
+        band(lo, q - d, np.empty((0,)))
+        fd[:, j] = (hi - lo) / (2 * eps)
+    np.testing.assert_allclose(grad, fd, atol=1e-6 * max(1.0, np.abs(fd).max()))
+    chart = Chart.at(q, np.eye(r.dof) * 4.0 + 0.1)
+    band.reset(frame, q, chart, strict=True)
+    x = rng.normal(0, 0.01, r.dof)
+    in_q, in_x = np.empty(len(band)), np.empty(len(band))
+    g_x = np.empty((len(band), r.dof))
+    band.chart = None
+    band(in_q, chart.q(x), grad)
+    band.chart = chart
+    band(in_x, x, g_x)
+    np.testing.assert_allclose(in_x, in_q, atol=1e-12)
+    np.testing.assert_allclose(g_x, grad @ chart.T, atol=1e-10)
+
+
+@pytest.mark.parametrize("name", ROBOTS)
+def test_the_band_keeps_reachable_hands_on_target_while_the_criteria_shape_the_arm(takes, name):
+    """Reachable targets (the robot's own TCP along its joint mapping, 3x slower) and strong
+    criteria: without the band SLSQP turns the hands off their targets; with it every hand stays
+    within 5 mm and 3 deg of its target after the first frame, and the arm still moves away from
+    the mapping (the criteria act inside the band and in the null space)."""
+    from hlik.problem.targets import HandTargets
+    from hlik.robot.model import joint_mapping, tcp_poses
+
+    r = load_robot(name)
+    motion = slowed(load_motion(takes[0], rate=100).crop(2.0, 2.3), 3.0).resample(100.0)
+    targets = HandTargets(*tcp_poses(r, joint_mapping(r, motion)))
+    placement = shoulder_placement(r, forward_kinematics(motion))
+    strong = SLSQPSettings(criteria=("SYN", "HJA_r"), criterion=40.0, orientation=1.0)
+    banded = replace(strong, position_band=0.005, orientation_band=np.radians(3.0))
+    errors = {}
+    for label, settings in (("free", strong), ("band", banded)):
+        q, result = solve_problem(solve, r, motion, targets, placement, settings, learned=learn(r))
+        assert not np.any(result.diagnostics.failed)
+        state = robot_state(r, q)
+        pos = np.linalg.norm(state.tcp - targets.pos, axis=-1)[1:]
+        ori = rotation_angle(state.tcp_rot, targets.rot)[1:]
+        errors[label] = (pos.max(), ori.max(), np.abs(q - joint_mapping(r, motion)).max())
+    assert errors["free"][0] > 0.006 or errors["free"][1] > np.radians(4.0), errors
+    assert errors["band"][0] <= 0.005 + 1e-3 and errors["band"][1] <= np.radians(3.0) + 2e-3, errors
+    assert errors["band"][2] > 0.05, errors
+
+
+def test_targets_out_of_the_band_s_reach_lag_without_failing(takes):
+    """Targets 1.5 m beyond reach: the band cannot be met; each frame falls back to "no worse than
+    its start", no more frames fail than without the band (NLopt's roundoff on the first, in
+    both), the limits hold, and the hands stay as near the targets as without the band (1 cm)."""
+    from hlik.problem.targets import HandTargets
+    from hlik.robot.model import joint_mapping, tcp_poses
+
+    r = load_robot("armar6")
+    motion = load_motion(takes[0], rate=100).crop(2.0, 2.3)
+    placement = shoulder_placement(r, forward_kinematics(motion))
+    near = HandTargets(*tcp_poses(r, joint_mapping(r, motion)))
+    far = replace(near, pos=near.pos + np.array([0.0, 1.5, 0.0]))
+    banded = SLSQPSettings(position_band=0.005, orientation_band=np.radians(3.0))
+    q, result = solve_problem(solve, r, motion, far, placement, banded)
+    plain, unbanded = solve_problem(solve, r, motion, far, placement, SLSQPSettings())
+    assert np.all(np.isfinite(q)) and not np.any(result.diagnostics.failed[1:])
+    assert result.diagnostics.failed.sum() <= unbanded.diagnostics.failed.sum()
+    assert np.all(q >= r.lower - 1e-9) and np.all(q <= r.upper + 1e-9)
+    gap = np.linalg.norm(robot_state(r, q).tcp - far.pos, axis=-1)
+    plain_gap = np.linalg.norm(robot_state(r, plain).tcp - far.pos, axis=-1)
+    assert np.mean(gap) <= np.mean(plain_gap) + 0.01, (np.mean(gap), np.mean(plain_gap))
+
+
+def test_the_trunk_loss_is_there_only_for_a_trunk_and_only_when_weighted():
+    from hlik.criteria.joints import TrunkUpright
+
+    def trunks(name, weight):
+        losses = build_losses(load_robot(name), SLSQPSettings(trunk=weight), None)
+        return [loss for loss in losses if isinstance(loss.term, TrunkUpright)]
+
+    assert not trunks("armar3", 0.0) and not trunks("armar6", 5.0) and not trunks("dual_panda", 5.0)
+    (loss,) = trunks("armar3", 5.0)
+    assert loss.weight == 5.0

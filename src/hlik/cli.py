@@ -318,7 +318,7 @@ def run(
                 "corpus": _corpus_label(corpus, learned.corpus),
                 "gradients": gradients,
             }
-            write_outputs(npz, rrd, traj, r, layout, ev.curves(), evaluation=ev, info=info)
+            write_outputs(npz, rrd, traj, r, layout, evaluation=ev, info=info)
     summary = _run_summary(path.stem, traj, m, solve_time, rrd, npz, ev)
     summary.add_row("criteria learned from", _corpus_label(corpus, learned.corpus, corpus_source))
     console.print(summary)

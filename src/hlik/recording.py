@@ -68,6 +68,10 @@ _FILL = rr.components.FillMode.Solid
 # is bounded by it, not by the take. 4096 rows is where the viewer's store stops compacting
 # (RERUN_CHUNK_MAX_ROWS); smaller chunks cost time, file size and footer memory per chunk.
 CHUNK_FRAMES = 4096
+# The time scale the score curves of the criteria of motion (MJE, MIS) are shown at, s: each frame's
+# score flips between 0 and 1 with its jerk (metrics.Evaluation.curves says why); over 0.2 s the
+# curve follows the motion as a viewer sees it, and still averages to m_i.
+SCORE_WINDOW = 0.2
 
 
 def write_recording(
@@ -93,7 +97,8 @@ def write_recording(
         robot: The robot it was retargeted to (for its geometry).
         layout: ``"side"`` (robot beside the human) or ``"overlay"`` (robot placed on the human).
         metrics: Criterion name -> (T,) per-frame score f_x0(h(t)), logged under ``/plots/metrics``
-            (see :meth:`hlik.metrics.Evaluation.curves`); wins over ``evaluation``'s curves.
+            (see :meth:`hlik.metrics.Evaluation.curves`); wins over ``evaluation``'s curves, which
+            show the criteria of motion over :data:`SCORE_WINDOW` (:func:`score_window`).
         chunk_frames: Frames per chunk of columns (positive); the file shows the same for any.
         evaluation: The trajectory's scores: their per-frame curves (unless ``metrics``), the
             per-frame m_hl(t) and m_f(t), and the table of the text panel ``/result``.
@@ -105,7 +110,8 @@ def write_recording(
         raise ValueError(f"layout must be one of {LAYOUTS}, got {layout!r}")
     if chunk_frames < 1:
         raise ValueError(f"chunk_frames must be positive, got {chunk_frames}")
-    curves = dict(metrics) if metrics is not None else (evaluation.curves() if evaluation else {})
+    window = score_window(trajectory)
+    curves = dict(metrics) if metrics is not None else (evaluation.curves(window) if evaluation else {})
     for name, values in curves.items():
         if np.shape(values) != (trajectory.n_frames,):
             raise ValueError(f"metric {name!r}: {np.shape(values)} values for {trajectory.n_frames} frames")
@@ -483,7 +489,7 @@ def _log(
         entity = _curve(rec, f"/plots/metrics/{_entity(name)}", f"{name} (score)", color)
         curves[entity] = np.asarray(metrics[name], dtype=float)
     if evaluation is not None:
-        m_hl, m_f = unified_curves(evaluation)
+        m_hl, m_f = unified_curves(evaluation, score_window(traj))
         curves[_curve(rec, "/plots/unified/m_hl", "m_hl(t) (score)", PALETTE[0])] = m_hl
         curves[_curve(rec, "/plots/unified/m_f", "m_f(t) (score)", PALETTE[1])] = m_f
         for who, body, colors in (
@@ -739,14 +745,21 @@ def _local_markers(obj: ObjectMotion, frames: np.ndarray, chunk_frames: int) -> 
     return local.reshape(-1, 3)
 
 
-def unified_curves(evaluation: Evaluation) -> tuple[np.ndarray, np.ndarray]:
+def score_window(trajectory: Trajectory) -> int:
+    """:data:`SCORE_WINDOW` in frames of ``trajectory`` (odd, at least 1)."""
+    dt = float(np.median(np.diff(trajectory.times))) if trajectory.n_frames > 1 else SCORE_WINDOW
+    return 2 * int(round(SCORE_WINDOW / dt / 2.0)) + 1
+
+
+def unified_curves(evaluation: Evaluation, window: int = 1) -> tuple[np.ndarray, np.ndarray]:
     """(T,) m_hl(t) = sum_i w_i f_i(t) and (T,) m_f(t), the mean of the scenario's functional f_i(t).
 
     A per-frame m_hl is not defined by the paper; these are the weighted sums Eq. 2 applies to the
-    per-frame scores f_i(t) = f_x0(h_i(t)), so that their means over the frames are exactly m_hl and
-    m_f (the m_i are such means).
+    per-frame scores f_i(t) = f_x0(h_i(t)) (the criteria of motion over ``window`` frames,
+    :meth:`~hlik.metrics.Evaluation.curves`), so that their means over the frames are exactly m_hl
+    and m_f (the m_i are such means).
     """
-    f = evaluation.curves()
+    f = evaluation.curves(window)
     weights = evaluation.metric.weights
     m_hl = sum(weights[k] * f[k] for k in registry.human_likeness())
     m_f = np.mean([f[k] for k in unified.FUNCTIONAL_X0[evaluation.scenario]], axis=0)

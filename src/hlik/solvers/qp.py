@@ -86,10 +86,10 @@ class QPSettings(LimitSettings):
     criteria: tuple[str, ...] = ()
     scenario: str = "pose"
     gamma: Mapping[str, float] = field(default_factory=lambda: GAMMA)
-    position_cost: float = 10.0
-    # 1 per rad against 10 per m (was 2): the hands' orientation gives way before their position,
-    # so the criteria can shape the arm (tasks/ee_pose.toml has the measurements)
-    orientation_cost: float = 1.0
+    # hands first (issue 28; were 10 and 1): the criteria had bought m_hl by turning the hands
+    # 8-16 deg further off (tasks/ee_pose.toml and README "Hands first" have the measurements)
+    position_cost: float = 30.0
+    orientation_cost: float = 5.0
     relative_position_cost: float = 10.0
     relative_orientation_cost: float = 2.0
     criterion_cost: float = 0.05

@@ -38,6 +38,7 @@ import numpy as np
 from hlik.criteria import registry, unified
 from hlik.criteria.base import Sample, Term
 from hlik.criteria.functional import fORI, fORI_off, fPOS, fPOS_off
+from hlik.criteria.joints import TrunkUpright
 from hlik.criteria.learned import Learned, learn
 from hlik.criteria.smoothness import ACCELERATION, JERK, VELOCITY, Smoothness
 from hlik.errors import SettingsError
@@ -114,6 +115,7 @@ def objective_scale(weights: np.ndarray, gammas: np.ndarray, h: np.ndarray, dh_d
 
 PRECONDITIONERS = ("gauss_newton", "scale", "none")
 COLLISION_TOLERANCE = 1e-4  # m, NLopt's tolerance on the collision constraints
+BAND_TOLERANCE = 1e-4  # m or rad, NLopt's tolerance on the hands' band
 BOX_TOLERANCE = 1e-8  # rad, NLopt's tolerance on the joint box rows of a Chart (solve_frame says why)
 
 
@@ -133,6 +135,8 @@ class SLSQPSettings(LimitSettings):
         relative_position, relative_orientation: Weights of the relative pose losses (paper Eqs. 3-4).
         velocity, acceleration, jerk: Weights of RelaxedIK's minimum velocity, acceleration, jerk.
         criterion: Weight of the criteria together; each gets ``criterion / len(criteria)``.
+        trunk: Weight of the extra (trunk) joints toward home
+            (:class:`~hlik.criteria.joints.TrunkUpright`, h in rad^2; 0: none).
         gamma: Criterion name -> scaling gamma_i inside the groove (Table II; 1 where absent).
         position_gamma: gamma_p of the TCP and relative position losses (Sec. IV-A: 10).
         gradients: ``analytic`` (from the term Jacobians) or ``fd`` (forward differences, the paper's).
@@ -146,6 +150,10 @@ class SLSQPSettings(LimitSettings):
         precondition: How NLopt sees each frame (the module docstring says why): ``gauss_newton``
             in the variables x of :class:`Chart`, where the objective's Hessian is about the
             identity; ``scale``: divided by :func:`objective_scale`; ``none``: raw, as RelaxedIK.
+        position_band, orientation_band: The hands' tolerance band, m and rad (0: none, the
+            paper's weighted form): each hand's position and orientation error (relative pose
+            errors in ``relative``) stays within it, or where a frame starts outside it, gets no
+            worse than at the start (:class:`BandConstraint`); the criteria act inside it.
     """
 
     criteria: tuple[str, ...] = ()
@@ -158,6 +166,7 @@ class SLSQPSettings(LimitSettings):
     acceleration: float = 2.0
     jerk: float = 1.0
     criterion: float = 10.0
+    trunk: float = 0.0
     gamma: Mapping[str, float] = field(default_factory=dict)
     position_gamma: float = 10.0
     gradients: str = "analytic"
@@ -170,6 +179,8 @@ class SLSQPSettings(LimitSettings):
     collision_detect: float = 0.10
     collision_pairs: int = 4
     precondition: str = "gauss_newton"
+    position_band: float = 0.0
+    orientation_band: float = 0.0
 
     def __post_init__(self):
         check_settings(
@@ -183,8 +194,11 @@ class SLSQPSettings(LimitSettings):
                 "acceleration",
                 "jerk",
                 "criterion",
+                "trunk",
                 "position_gamma",
                 "collision_margin",
+                "position_band",
+                "orientation_band",
             ),
             positive=("fd_step", "collision_detect"),
             fractions=("ftol_rel",),
@@ -247,6 +261,8 @@ def build_losses(
         (Smoothness(ACCELERATION, robot, "acceleration"), settings.acceleration),
         (Smoothness(JERK, robot, "jerk"), settings.jerk),
     ]
+    if robot.extra_joints:
+        weighted.append((TrunkUpright(robot), settings.trunk))
     for name in settings.criteria:
         term = registry.criterion(name, robot, learned)
         if not (first and term.motion):
@@ -571,6 +587,60 @@ class CollisionConstraint:
             grad[: len(order)] = -jac[order] if self.chart is None else -jac[order] @ self.chart.T
 
 
+class BandConstraint:
+    """The hands' tolerance band as NLopt's ``h_p(q) - bound_p <= 0``, one row per arm (per part)
+    of each target term that has a band: the error of hand p (m or rad) within the band or, in a
+    frame where that cannot be met (a target out of reach, or one the limits let the hand only lag
+    behind), no worse than at the frame's start (``bound_p = max(band, h_p(q_start))``), which is
+    always feasible; the objective's tracking loss then pulls the hand in. In the variables of
+    :attr:`chart` when set.
+    """
+
+    def __init__(self, robot: Robot, losses: Sequence[Loss], settings: SLSQPSettings):
+        bands: dict[type[Term], float] = {fPOS: settings.position_band, fPOS_off: settings.position_band}
+        bands |= {fORI: settings.orientation_band, fORI_off: settings.orientation_band}
+        self.robot = robot
+        self.terms = [loss.term for loss in losses if bands.get(type(loss.term), 0.0) > 0.0]
+        self.bands = [bands[type(t)] for t in self.terms]
+        self.sites = _sites(t.sites for t in self.terms)
+        self.data = mujoco.MjData(robot.model)
+        self.chart: Chart | None = None
+        self.bound = np.zeros(0)
+        self.frame: Sample | None = None
+
+    def __len__(self) -> int:
+        return sum(t.parts for t in self.terms)
+
+    def errors(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Each hand's error (k,) of each banded term at ``q`` (n,) and its gradient (k, n)."""
+        if self.frame is None:
+            raise RuntimeError("BandConstraint.reset(frame, ...) must be called before evaluating")
+        state = robot_state(self.robot, q, True, self.data, self.sites)
+        parts = [t.part_gradients(state, self.frame) for t in self.terms]
+        return np.concatenate([h for h, _ in parts]), np.vstack([g for _, g in parts])
+
+    @property
+    def band(self) -> np.ndarray:
+        """(k,) each row's band."""
+        return np.concatenate([np.full(t.parts, b) for t, b in zip(self.terms, self.bands)])
+
+    def reset(self, frame: Sample, q_start: np.ndarray, chart: Chart | None, strict: bool) -> None:
+        """Set the frame, its start ``q_start`` (n,) and the objective's chart; ``strict``: the
+        bound is the band, else the band or the start's error where that is larger."""
+        self.frame, self.chart = frame, chart
+        self.bound = self.band if strict else np.maximum(self.band, self.errors(q_start)[0])
+
+    def met(self, q: np.ndarray) -> bool:
+        """Whether every hand is inside its band at ``q`` (n,), within NLopt's tolerance."""
+        return bool(np.all(self.errors(q)[0] <= self.band + BAND_TOLERANCE))
+
+    def __call__(self, result: np.ndarray, x: np.ndarray, grad: np.ndarray) -> None:
+        h, dh_dq = self.errors(x if self.chart is None else self.chart.q(x))
+        result[:] = h - self.bound
+        if grad.size:
+            grad[:] = dh_dq if self.chart is None else dh_dq @ self.chart.T
+
+
 class BoxConstraint:
     """The joint box ``lower <= q(x) <= upper`` (its finite rows only) and the box's rows
     ``rows @ q(x) <= bound`` (the torque limits) as NLopt's linear ``A x <= b`` in a chart's
@@ -604,14 +674,37 @@ def solve_frame(
     max_eval: int,
     box: JointBox,
     collision: CollisionConstraint | None = None,
+    band: BandConstraint | None = None,
 ) -> tuple[np.ndarray, int]:
     """Minimise ``objective`` at ``frame`` from ``q0`` (n,) within ``box`` (and clear of
-    ``collision``), in the objective's chart when it sets one.
+    ``collision``, the hands inside ``band``), in the objective's chart when it sets one. With a
+    band, the frame is solved with the hands inside it first and, where that ends outside it (the
+    band cannot be met from here), again with them no worse than at the start.
 
     Returns:
         (n,) the solution and NLopt's result code; on failure (negative code) the best finite
         configuration evaluated, else ``q0``.
     """
+    if band is None or not len(band):
+        return _solve_once(opt, objective, frame, q0, max_eval, box, collision, None)
+    q, status = _solve_once(opt, objective, frame, q0, max_eval, box, collision, band, strict=True)
+    if status > 0 and band.met(q):
+        return q, status
+    return _solve_once(opt, objective, frame, q0, max_eval, box, collision, band, strict=False)
+
+
+def _solve_once(
+    opt: nlopt.opt,
+    objective: Objective,
+    frame: Sample,
+    q0: np.ndarray,
+    max_eval: int,
+    box: JointBox,
+    collision: CollisionConstraint | None,
+    band: BandConstraint | None,
+    strict: bool = False,
+) -> tuple[np.ndarray, int]:
+    """One NLopt run of :func:`solve_frame`; ``strict``: the band as it is, else relaxed to the start."""
     objective.reset(frame, q0)
     chart = objective.chart
     opt.remove_inequality_constraints()
@@ -619,6 +712,9 @@ def solve_frame(
         collision.chart = chart
         tolerance = np.full(collision.settings.collision_pairs, COLLISION_TOLERANCE)
         opt.add_inequality_mconstraint(collision, tolerance)
+    if band is not None:
+        band.reset(frame, q0, chart, strict)
+        opt.add_inequality_mconstraint(band, np.full(len(band), BAND_TOLERANCE))
     if chart is None:
         opt.set_lower_bounds(box.lower)
         opt.set_upper_bounds(box.upper)
@@ -669,13 +765,14 @@ def solve(
     opt = make_optimizer(robot, settings)
     pairs = collision_pairs(robot) if settings.self_collision else None
     collision = CollisionConstraint(robot, pairs, settings) if pairs is not None and len(pairs) else None
+    bands = {id(o): BandConstraint(robot, o.losses, settings) for o in (objective, first)}
     status = np.zeros(problem.n_frames, dtype=int)
 
     def solve_frame_k(k: int, frame: Sample, q: np.ndarray, box: JointBox) -> FrameResult:
         obj, max_eval = (first, settings.first_eval) if k == 0 else (objective, settings.max_eval)
         if collision is not None:
             collision.brake(box)
-        q, status[k] = solve_frame(opt, obj, frame, box.clip(q), max_eval, box, collision)
+        q, status[k] = solve_frame(opt, obj, frame, box.clip(q), max_eval, box, collision, bands[id(obj)])
         converged = status[k] > 0 and status[k] != nlopt.MAXEVAL_REACHED
         return FrameResult(box.clip(q), obj.evaluations, converged, status[k] < 0)
 
