@@ -87,9 +87,9 @@ class QPSettings(LimitSettings):
     scenario: str = "pose"
     gamma: Mapping[str, float] = field(default_factory=lambda: GAMMA)
     # hands first (issue 28; were 10 and 1): the criteria had bought m_hl by turning the hands
-    # 8-16 deg further off (tasks/ee_pose.toml and README "Hands first" have the measurements)
+    # (tasks/ee_pose.toml and README "Hands first" have the measurements)
     position_cost: float = 30.0
-    orientation_cost: float = 5.0
+    orientation_cost: float = 2.0
     relative_position_cost: float = 10.0
     relative_orientation_cost: float = 2.0
     criterion_cost: float = 0.05
