@@ -111,3 +111,26 @@ def test_cli_errors_are_one_line(args, pattern):
     assert result.exit_code == 2
     out = result.output.strip()
     assert re.search(pattern, out) and len(out.splitlines()) == 1 and "Traceback" not in out
+
+
+def test_the_package_gives_its_submodules_on_first_access():
+    """``import hlik; hlik.paths.demo_motion_path()`` (the README's mink example) works in a fresh
+    interpreter without importing ``hlik.paths`` first; an unknown name is still an AttributeError,
+    and importing ``hlik`` alone loads none of the heavy libraries."""
+    import subprocess
+    import sys
+
+    code = (
+        "import sys\n"
+        "import hlik\n"
+        "heavy = sorted(m for m in ('mujoco', 'rerun', 'scipy') if m in sys.modules)\n"
+        "print(hlik.paths.demo_motion_path().name, heavy)\n"
+        "try:\n"
+        "    hlik.no_such_thing\n"
+        "except AttributeError as err:\n"
+        "    print('AttributeError', err)\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0, done.stderr
+    assert "demo_pour_wipe.xml []" in done.stdout, done.stdout
+    assert "AttributeError module 'hlik' has no attribute 'no_such_thing'" in done.stdout, done.stdout

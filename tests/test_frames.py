@@ -8,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from hlik.solvers.frames import COLLISION_PENALTY, JointBox, constrained_steps, iterate
-from hlik.solvers.qp import solve_qp
+from hlik.solvers.qp_backend import solve_qp
 
 
 def test_a_step_that_flips_back_and_forth_is_damped_to_the_fixed_point():

@@ -58,6 +58,26 @@ def test_every_exact_jacobian_matches_central_differences(robot, name):
     np.testing.assert_allclose(dh_de, central_differences(lambda x: crit.cost(x[None]), e)[0], atol=1e-5)
 
 
+@pytest.mark.parametrize("name", ALL)
+def test_every_criterion_declares_the_sites_it_reads(robot, name):
+    """The solvers compute only the site Jacobians the terms declare (``sites`` for the Jacobian,
+    ``value_sites`` for the residual) and leave the others zero: with only the declared ones, each
+    criterion's residual, Jacobian and exact Jacobian equal those computed from every site's."""
+    crit = registry.criterion(name, robot, learn(robot))
+    sample, q = random_frame(robot, 4)
+    full = robot_state(robot, q, jacobians=True)
+    declared = robot_state(
+        robot, q, jacobians=True, jacobian_sites=tuple(sorted({*crit.sites, *crit.value_sites}))
+    )
+    e, jac = crit(declared, sample)
+    e_full, jac_full = crit(full, sample)
+    np.testing.assert_array_equal(e, e_full)
+    np.testing.assert_array_equal(jac, jac_full)
+    np.testing.assert_array_equal(crit.exact(declared, sample)[1], crit.exact(full, sample)[1])
+    values = robot_state(robot, q, jacobians=True, jacobian_sites=tuple(crit.value_sites))
+    np.testing.assert_array_equal(crit.residual(values, sample), crit.residual(full, sample))
+
+
 @pytest.mark.parametrize("name", registry.human_likeness())
 def test_every_criterion_gradient_matches_central_differences_of_its_cost(robot, name):
     """SLSQP and JV differentiate h through ``gradient``: exact for every criterion, also where the

@@ -276,7 +276,9 @@ def test_a_frame_with_nan_targets_fails_alone_and_keeps_the_last_configuration(m
     assert not info.diagnostics.failed[4:].any() and after.max() < 0.01
 
 
-@pytest.mark.parametrize("error", [nlopt.RoundoffLimited, nlopt.runtime_error], ids=lambda e: e.__name__)
+@pytest.mark.parametrize(
+    "error", [nlopt.RoundoffLimited, nlopt.runtime_error, RuntimeError], ids=lambda e: e.__name__
+)
 def test_an_nlopt_exception_keeps_the_best_configuration_evaluated(monkeypatch, error):
     r, motion, placement, targets = _problem("armar3", 2.0, 2.2)
     reference, _ = solve_problem(solve, r, motion, targets, placement)
@@ -449,3 +451,23 @@ def test_the_trunk_loss_is_there_only_for_a_trunk_and_only_when_weighted():
     assert not trunks("armar3", 0.0) and not trunks("armar6", 5.0) and not trunks("dual_panda", 5.0)
     (loss,) = trunks("armar3", 5.0)
     assert loss.weight == 5.0
+
+
+def test_a_bug_in_a_callback_stops_the_run_instead_of_failing_a_frame(monkeypatch):
+    """A RuntimeError that is not NLopt's ("nlopt failure") propagates: a bug in a criterion must not
+    pass for a failed frame."""
+    from hlik.criteria.functional import fPOS
+
+    r, motion, placement, targets = _problem("armar3", 2.0, 2.1)
+    real = fPOS.residual
+
+    def broken(self, state, sample):
+        if state.q.shape[0] == 1 and broken.calls > 40:
+            raise RuntimeError("a bug in the criterion")
+        broken.calls += 1
+        return real(self, state, sample)
+
+    broken.calls = 0
+    monkeypatch.setattr(fPOS, "residual", broken)
+    with pytest.raises(RuntimeError, match="a bug in the criterion"):
+        solve_problem(solve, r, motion, targets, placement)

@@ -5,20 +5,25 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 from importlib import import_module
+from importlib.util import find_spec
 from typing import Any
 
 
 def lazy_getattr(package: str, where: Mapping[str, str], namespace: dict[str, Any]) -> Callable[[str], Any]:
     """The module ``__getattr__`` of ``package``: name -> the attribute of that name in the module
-    ``where[name]``, stored in ``namespace`` (the package's globals) once imported.
+    ``where[name]``, stored in ``namespace`` (the package's globals) once imported; any other name
+    that is a submodule of ``package``, that submodule (``import hlik; hlik.paths`` works without
+    importing ``hlik.paths`` first, as for any package that imports its submodules).
 
     Raises:
-        AttributeError: a name not in ``where``.
+        AttributeError: a name neither in ``where`` nor a submodule.
     """
 
     def __getattr__(name: str) -> Any:
         if name not in where:
-            raise AttributeError(f"module {package!r} has no attribute {name!r}")
+            if name.startswith("__") or find_spec(f"{package}.{name}") is None:
+                raise AttributeError(f"module {package!r} has no attribute {name!r}")
+            return import_module(f"{package}.{name}")
         value = getattr(import_module(where[name]), name)
         namespace[name] = value  # once imported, a plain attribute
         return value

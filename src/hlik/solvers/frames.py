@@ -144,7 +144,7 @@ class StepConstraints:
     """What a step ``dq`` (n,) must keep: ``lower <= dq <= upper`` (n,) and ``rows @ dq <= bound``
     ((k, n), (k,)); ``soft`` (k,) the slack penalty of each row a step may miss (0: hard; None:
     every row hard), per unit of the largest diagonal entry of the step's Hessian
-    (:func:`hlik.solvers.qp.solve_qp`)."""
+    (:func:`hlik.solvers.qp_backend.solve_qp`)."""
 
     lower: np.ndarray
     upper: np.ndarray

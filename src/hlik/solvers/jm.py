@@ -16,7 +16,7 @@ from hlik.solvers.base import Diagnostics, SolverResult
 
 
 @dataclass(frozen=True)
-class JointMapping:
+class JMSolver:
     """The JM solver."""
 
     name: str = "jm"
@@ -29,6 +29,6 @@ class JointMapping:
 
 def jm_solver(
     settings: object = None, learned: object = None, progress: Callable[[int], None] | None = None
-) -> JointMapping:
+) -> JMSolver:
     """The JM solver (it has no settings; the arguments keep the factories alike)."""
-    return JointMapping()
+    return JMSolver()

@@ -51,7 +51,7 @@ from hlik.solvers.frames import (
     track,
 )
 from hlik.solvers.limits import LimitSettings, MotionLimits
-from hlik.solvers.qp import solve_qp
+from hlik.solvers.qp_backend import solve_qp
 
 
 @dataclass(frozen=True)
@@ -249,7 +249,7 @@ def avoiding_least_norm(
     weighted least-norm solution; with the rows, its fixed point (``qdot = 0``) is a stationary
     point of the tracking error among the configurations that keep the rows, whatever the weights.
     Weights are capped at 1e6 (larger ones hold a joint all the same). ``soft``: the rows it may
-    miss, as :func:`~hlik.solvers.qp.solve_qp` takes them. None if infeasible.
+    miss, as :func:`~hlik.solvers.qp_backend.solve_qp` takes them. None if infeasible.
     """
     w = np.minimum(weights, 1e6)
     hessian = jac.T @ jac + damping**2 * np.diag(w)

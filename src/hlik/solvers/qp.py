@@ -14,10 +14,8 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from types import MappingProxyType
 
-import daqp
 import mujoco
 import numpy as np
-import qpsolvers
 
 from hlik.criteria import registry, unified
 from hlik.criteria.base import Sample, Term
@@ -41,6 +39,7 @@ from hlik.solvers.frames import (
     track,
 )
 from hlik.solvers.limits import LimitSettings, MotionLimits
+from hlik.solvers.qp_backend import qp_backends, solve_qp
 
 # HJA_r's Table II gamma (2) doubled for the QP: beside SYN (gamma 6) it barely acted, and SYN +
 # HJA_r raised 2-Panda's m_hl by 0.042; at 4 by 0.051 (README, quality table), tracking within 2 cm.
@@ -136,11 +135,6 @@ class QPSettings(LimitSettings):
                 f"QPSettings.solver {self.solver!r} is not an installed QP solver; "
                 f"choose one of: {', '.join(qp_backends())}"
             )
-
-
-def qp_backends() -> tuple[str, ...]:
-    """QP solvers :func:`solve_qp` can use: daqp (called directly) and qpsolvers' installed ones."""
-    return tuple(dict.fromkeys(("daqp", *qpsolvers.available_solvers)))
 
 
 def build_terms(
@@ -261,44 +255,6 @@ def _band(term: Term, settings: QPSettings) -> float:
     if isinstance(term, fPOS | fPOS_off):
         return settings.position_band / np.sqrt(3.0)
     return 0.0
-
-
-def solve_qp(
-    hessian,
-    gradient,
-    lb,
-    ub,
-    solver: str,
-    a_ineq: np.ndarray,
-    b_ineq: np.ndarray,
-    soft: np.ndarray | None = None,
-) -> np.ndarray | None:
-    """min 1/2 x'Hx + g'x subject to lb <= x <= ub and a_ineq x <= b_ineq; None if the solver
-    fails (infeasible). ``soft`` (k,): the rows with a positive entry may be missed by a slack
-    s_i >= 0 that costs ``soft_i max(diag H) s_i^2`` (:class:`~hlik.solvers.frames.StepConstraints`);
-    with a soft row, the problem is feasible wherever the bounds are."""
-    if soft is not None and np.any(soft > 0):
-        n, picked = len(lb), np.flatnonzero(soft > 0)
-        k = len(picked)
-        scale = float(np.max(np.diag(hessian), initial=1.0))
-        hessian = np.block([[hessian, np.zeros((n, k))], [np.zeros((k, n)), np.diag(scale * soft[picked])]])
-        gradient = np.concatenate([gradient, np.zeros(k)])
-        slack = np.zeros((len(b_ineq), k))
-        slack[picked, np.arange(k)] = -1.0
-        a_ineq = np.hstack([a_ineq, slack])
-        lb, ub = np.concatenate([lb, np.zeros(k)]), np.concatenate([ub, np.full(k, np.inf)])
-        x = solve_qp(hessian, gradient, lb, ub, solver, a_ineq, b_ineq)
-        return None if x is None else x[:n]
-    if solver != "daqp":
-        g = a_ineq if len(b_ineq) else None
-        h = b_ineq if len(b_ineq) else None
-        return qpsolvers.solve_qp(hessian, gradient, G=g, h=h, lb=lb, ub=ub, solver=solver)
-    # daqp directly: qpsolvers' wrapping costs as much as the solve itself at this size
-    sense = np.zeros(len(lb) + len(b_ineq), dtype=np.int32)
-    upper = np.concatenate([ub, b_ineq])
-    lower = np.concatenate([lb, np.full(len(b_ineq), -1e30)])
-    x, _, exitflag, _ = daqp.solve(hessian, gradient, a_ineq, upper, lower, sense)
-    return np.asarray(x) if exitflag > 0 else None
 
 
 def solve(

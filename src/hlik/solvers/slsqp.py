@@ -55,7 +55,10 @@ from hlik.solvers.limits import LimitSettings, MotionLimits
 # demo; with 10 it is a few mm (Sec. V-B's x0: 3 cm).
 POSITION_TERMS = ("fPOS", "fPOS_off")
 
-# NLopt exceptions that end one frame, not the run, and the result code each stands for.
+# NLopt exceptions that end one frame, not the run, and the result code each stands for. NLopt's
+# generic failure also comes as a plain RuntimeError("nlopt failure"): only that message counts, so
+# that a RuntimeError raised by hlik's own code in a callback (a bug) stops the run instead of
+# passing for a failed frame.
 NLOPT_ERRORS: Mapping[type[Exception], int] = MappingProxyType(
     {
         nlopt.RoundoffLimited: nlopt.ROUNDOFF_LIMITED,
@@ -64,6 +67,17 @@ NLOPT_ERRORS: Mapping[type[Exception], int] = MappingProxyType(
         RuntimeError: nlopt.FAILURE,
     }
 )
+NLOPT_FAILURE_MESSAGE = "nlopt failure"
+
+
+def _nlopt_code(err: Exception) -> int | None:
+    """NLopt's result code for an exception NLopt raised, None for any other."""
+    for kind, code in NLOPT_ERRORS.items():
+        if isinstance(err, kind):
+            if kind is RuntimeError and str(err) != NLOPT_FAILURE_MESSAGE:
+                return None
+            return code
+    return None
 
 
 GROOVE_C, GROOVE_R = 0.1, 10.0  # the paper's c and r (Sec. IV-A)
@@ -737,7 +751,10 @@ def _solve_once(
         if not (np.all(np.isfinite(q)) and np.isfinite(opt.last_optimum_value())):
             q, status = None, nlopt.FAILURE
     except tuple(NLOPT_ERRORS) as err:
-        q, status = None, next(code for kind, code in NLOPT_ERRORS.items() if isinstance(err, kind))
+        code = _nlopt_code(err)
+        if code is None:
+            raise
+        q, status = None, code
     if q is None:
         q = objective.best if objective.best is not None else q0
     return np.asarray(q, dtype=float), int(status)
