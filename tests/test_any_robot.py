@@ -211,3 +211,23 @@ def test_auto_scale_fits_the_subject_to_the_g1_arms(g1, cut_take, tmp_path):
         bad.exit_code != 0 and "subject scale (--scale, subject_scale) must be auto or 0.1-10" in bad.output
     )
     assert not list(tmp_path.iterdir())
+
+
+def test_auto_scale_warns_where_it_lifts_the_subjects_shoulders_off_the_robots(g1, cut_take):
+    """``auto`` scales by arm length about the floor: right for the G1 (a small person's build), but
+    ARMAR-6's arms are 1.5x the subject's at about its height, so the scaled subject's shoulders
+    stand 0.7 m above the robot's; that is said in a note (a run's warning) naming the file."""
+    from hlik.human import load_motion
+    from hlik.problem.scale import SHOULDER_GAP, scale_subject, shoulder_gap
+
+    motion = load_motion(cut_take).frames(slice(0, 5))
+    small = scale_subject(motion, g1, "auto")
+    assert abs(shoulder_gap(g1, small)) < SHOULDER_GAP and not any(
+        "above the robot" in n for n in small.notes
+    )
+    armar6 = load_robot("armar6")
+    assert abs(shoulder_gap(armar6, motion)) < 0.05  # as recorded, the shoulders meet
+    big = scale_subject(motion, armar6, "auto")
+    assert 0.6 < shoulder_gap(armar6, big) < 0.8
+    (note,) = [n for n in big.notes if "above the robot" in n]
+    assert note.startswith(str(cut_take)) and "ARMAR-6's arms are long for its height" in note

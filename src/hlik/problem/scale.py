@@ -10,6 +10,7 @@ human-to-robot scaling of retargeting tools.
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import mujoco
 import numpy as np
@@ -21,6 +22,10 @@ from hlik.robot.model import SIDES, Robot
 
 ARM = ("shoulder", "elbow", "wrist", "tcp")
 SCALE_RANGE = (0.1, 10.0)  # a factor outside it is a typo, not a robot
+# m: a scaled subject whose shoulders stand farther than this above or below the robot's puts the
+# hand targets out of the robot's reach (ARMAR-6's arms are 1.5x the KIT subject's at about its
+# height: ``auto`` makes the subject 2.54 m tall, the hands 0.7 m above the robot's shoulders)
+SHOULDER_GAP = 0.15
 
 
 def arm_length(model: mujoco.MjModel, qpos: np.ndarray) -> float:
@@ -41,6 +46,21 @@ def auto_scale(robot: Robot, motion: HumanMotion) -> float:
     return arm_length(robot.model, robot.home) / arm_length(human, human.qpos0)
 
 
+def shoulder_gap(robot: Robot, motion: HumanMotion) -> float:
+    """How far the subject's shoulders (midpoint, first frame) stand above the robot's at home, both
+    on their floors, m."""
+    from hlik.human.kinematics import forward_kinematics
+    from hlik.robot.floor import floor_height
+
+    data = mujoco.MjData(robot.model)
+    data.qpos[:] = robot.home
+    mujoco.mj_kinematics(robot.model, data)
+    ids = [robot.model.site(f"{side}_shoulder").id for side in SIDES]
+    robot_z = float(np.mean([data.site_xpos[i][2] for i in ids])) + floor_height(robot)
+    human_z = float(np.mean(forward_kinematics(motion.frames(slice(0, 1))).shoulder[0, :, 2]))
+    return human_z - robot_z
+
+
 def scale_subject(motion: HumanMotion, robot: Robot, rule: float | str | None = None) -> HumanMotion:
     """``motion`` by a subject scaled by ``rule``: a factor, ``"auto"`` (:func:`auto_scale`), or None
     for the robot's own (``Robot.subject_scale``).
@@ -51,7 +71,18 @@ def scale_subject(motion: HumanMotion, robot: Robot, rule: float | str | None = 
     rule = robot.subject_scale if rule is None else rule
     if rule == "auto":
         factor = auto_scale(robot, motion)
-        return motion.scaled(factor, f" to {robot.title}'s arms (subject_scale auto)")
+        scaled = motion.scaled(factor, f" to {robot.title}'s arms (subject_scale auto)")
+        gap = shoulder_gap(robot, scaled)
+        if abs(gap) > SHOULDER_GAP:
+            where = motion.source or motion.name
+            side = "above" if gap > 0 else "below"
+            note = (
+                f"{where}: the subject scaled to {robot.title}'s arms has its shoulders {abs(gap):.2f} m "
+                f"{side} the robot's, and the hand targets with them: {robot.title}'s arms are "
+                f"{'long' if gap > 0 else 'short'} for its height (--scale or subject_scale: 1, or a factor)"
+            )
+            scaled = replace(scaled, notes=(*scaled.notes, note))
+        return scaled
     try:
         factor = float(rule)
     except (TypeError, ValueError):
