@@ -64,3 +64,36 @@ def test_the_last_constrained_step_is_always_feasible_and_keeps_the_box(seed):
     x = solve_qp(a @ a.T + np.eye(n), rng.normal(size=n), c.lower, c.upper, "daqp", c.rows, c.bound, c.soft)
     assert x is not None
     assert np.all(x >= c.lower - 1e-9) and np.all(x <= c.upper + 1e-9)
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.integers(0, 2**31 - 1))
+def test_the_nearest_band_is_met_and_moves_only_the_rows_no_step_meets(seed):
+    """A band of random rows, some beyond the step's box: :func:`nearest_band` returns bounds a step
+    meets (the step's own QP then has a solution), equal to the band's where the band could be met
+    row by row at the stage-one step, and the body's rows untouched."""
+    from hlik.solvers.frames import nearest_band
+
+    rng = np.random.default_rng(seed)
+    n, k = 5, 4
+    q = rng.uniform(-1, 1, n)
+    half = rng.uniform(1e-3, 0.05, n)
+    box = JointBox(q - half, q + half)
+    a_band = rng.normal(size=(k, n))
+    b_band = rng.normal(0, 0.2, k)  # some rows out of a step's reach
+    (c, *_) = constrained_steps(box, q, 0.2, np.zeros((0, n)), np.zeros(0), a_band, (b_band,))
+    nearest = nearest_band(c, k, "daqp")
+    assert nearest is not None and np.all(nearest >= c.bound)
+    a = rng.normal(size=(n, n))
+    x = solve_qp(a @ a.T + np.eye(n), rng.normal(size=n), c.lower, c.upper, "daqp", c.rows, nearest)
+    assert x is not None and np.all(c.rows @ x <= nearest + 1e-7)
+    if solve_qp(np.eye(n), np.zeros(n), c.lower, c.upper, "daqp", c.rows, c.bound) is not None:
+        np.testing.assert_allclose(nearest, c.bound, atol=1e-6)  # the band itself could be met
+
+
+def test_a_step_the_solver_cannot_find_fails_the_frame_where_it_stands():
+    box = JointBox(np.full(2, -1.0), np.full(2, 1.0))
+    steps = iter([np.array([0.1, 0.0]), None])
+    result = iterate(lambda q: next(steps), np.zeros(2), box, max_iter=10, tol=1e-6)
+    assert result.failed and not result.converged and result.iterations == 2
+    np.testing.assert_allclose(result.q, [0.1, 0.0])

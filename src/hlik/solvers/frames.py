@@ -28,6 +28,7 @@ from hlik.solvers.base import Diagnostics, SolverResult
 from hlik.solvers.limits import JointBox as JointBox  # re-exported: the solvers' frame box
 from hlik.solvers.limits import LimitSettings as LimitSettings
 from hlik.solvers.limits import MotionLimits
+from hlik.solvers.qp_backend import solve_qp
 
 
 @dataclass(frozen=True)
@@ -94,7 +95,7 @@ def track(
 
 
 def iterate(
-    step: Callable[[np.ndarray], np.ndarray],
+    step: Callable[[np.ndarray], np.ndarray | None],
     q: np.ndarray,
     box: JointBox,
     max_iter: int,
@@ -102,7 +103,9 @@ def iterate(
     damp_reversals: bool = False,
 ) -> FrameResult:
     """Repeat ``q <- clip(q + step(q))`` into ``box`` until no joint moves more than ``tol``
-    (converged) or ``max_iter`` steps (the paper's stopping rule for JV).
+    (converged) or ``max_iter`` steps (the paper's stopping rule for JV). A step of None (no step
+    the QP solver could find) ends the frame where it is, failed: standing still is then not
+    convergence.
 
     ``damp_reversals``: a step that turns back on the previous one (cosine below -1/2) halves the
     scale of this and every later step. A Gauss-Newton step can flip a joint between the ends of
@@ -116,6 +119,8 @@ def iterate(
     previous: np.ndarray | None = None
     while steps < max_iter:
         delta = step(q)
+        if delta is None:
+            return FrameResult(q, steps + 1, False, True)
         if damp_reversals and previous is not None:
             dot = float(delta @ previous)
             if dot < -0.5 * np.linalg.norm(delta) * np.linalg.norm(previous):
@@ -134,9 +139,6 @@ def iterate(
 # tenth of a radian of the costliest joint, a torque row missed by 0.1 N m as much as 0.1 rad
 COLLISION_PENALTY = 1e6  # per m^2
 TORQUE_PENALTY = 1.0  # per (N m)^2
-# a hand out of its tolerance band by 1 mm (or 1 mrad) costs as much as a tenth of a radian of the
-# costliest joint: below the body, above everything the criteria can buy
-BAND_PENALTY = 1e4  # per m^2 or rad^2
 
 
 @dataclass(frozen=True, eq=False)
@@ -160,35 +162,56 @@ def constrained_steps(
     a_col: np.ndarray,
     b_col: np.ndarray,
     a_band: np.ndarray | None = None,
-    b_band: np.ndarray | None = None,
+    b_bands: tuple[np.ndarray, ...] = (),
 ) -> list[StepConstraints]:
     """What a step from ``q`` (n,) inside ``box`` tries to keep, in order: (1) every row, the box's
-    (torque) and the collision rows ``a_col``, ``b_col`` (k, n), (k,) (:func:`collision_rows`);
-    where no step meets them, (2) the collision rows soft (missed as little as the box and the
+    (torque), the collision rows ``a_col``, ``b_col`` (k, n), (k,) (:func:`collision_rows`) and the
+    hands' band (below); where no step meets them, (2) every row but the band's (the body before
+    the hands); then (3) the collision rows soft (missed as little as the box and the
     torque rows allow: a pair the limits cannot pull back to its floor in time brakes, or backs
-    out of the margin, as hard as they let it), then (3) the torque rows soft too, at a lower
-    penalty (the body before the torque). (3) is always feasible. The QP and JV take the first
+    out of the margin, as hard as they let it), then (4) the torque rows soft too, at a lower
+    penalty (the body before the torque). (4) is always feasible. The QP and JV take the first
     their solver can meet. The box itself always holds: an acceleration limit given up for the
-    margin was a jump of 40 times the limit, for a miss of the margin by 0.1 mm; and a row
-    relaxed to "no worse than the step's start" let the arm coast into the body at its speed.
+    margin was a jump of 40 times the limit, for a miss of the margin by 0.1 mm; and a collision
+    row relaxed to "no worse than the step's start" let the arm coast into the body at its speed.
 
-    ``a_band``, ``b_band`` (k, n), (k,): the hands' tolerance band, soft in every try
-    (:data:`BAND_PENALTY`), so that it never makes a step infeasible."""
+    The hands' band ``a_band`` (k, n) is tried with each bound of ``b_bands`` in turn, before (2),
+    as hard rows; where the band is out of a step's reach, the QP moves its bound out by as little
+    as the body's rows allow (:func:`nearest_band`). Soft rows at a penalty high enough to act as
+    a priority had left daqp's problem so badly scaled that it called every step infeasible, and
+    a robot started 0.6 m from its targets never moved."""
     lower, upper = box.step_bounds(q, max_step)
     a_box, b_box = box.step_rows(q)
-    if a_band is None or b_band is None:
-        a_band, b_band = np.zeros((0, len(q))), np.zeros(0)
-    a, b = np.vstack([a_box, a_col, a_band]), np.concatenate([b_box, b_col, b_band])
-    band = np.full(len(b_band), BAND_PENALTY)
+    a, b = np.vstack([a_box, a_col]), np.concatenate([b_box, b_col])
+    tries = []
+    if a_band is not None:
+        rows = np.vstack([a, a_band])
+        tries += [StepConstraints(lower, upper, rows, np.concatenate([b, bound])) for bound in b_bands]
+    tries.append(StepConstraints(lower, upper, a, b))
     hard, collision = np.zeros(len(b_box)), np.full(len(b_col), COLLISION_PENALTY)
-    first = np.concatenate([hard, np.zeros(len(b_col)), band]) if len(b_band) else None
-    tries = [StepConstraints(lower, upper, a, b, first)]
     if len(b_col):
-        tries.append(StepConstraints(lower, upper, a, b, np.concatenate([hard, collision, band])))
+        tries.append(StepConstraints(lower, upper, a, b, np.concatenate([hard, collision])))
     if len(b_box):
         torque = np.full(len(b_box), TORQUE_PENALTY)
-        tries.append(StepConstraints(lower, upper, a, b, np.concatenate([torque, collision, band])))
+        tries.append(StepConstraints(lower, upper, a, b, np.concatenate([torque, collision])))
     return tries
+
+
+def nearest_band(c: StepConstraints, k: int, solver: str) -> np.ndarray | None:
+    """The bound of ``c`` with its last ``k`` rows (the hands' band) moved out by as little as its
+    other rows and bounds allow: each band row's least miss, from the QP that minimises the sum of
+    the squared misses alone (its step regularised by 1e-6); None if the other rows cannot be met
+    either. The first stage of a lexicographic step: the second minimises the step's own cost
+    within the bound returned, which the first stage's step meets."""
+    n, m = len(c.lower), len(c.bound)
+    soft = np.concatenate([np.zeros(m - k), np.full(k, 1e6)])  # slack weight 1 against 1e-6 I
+    dq = solve_qp(1e-6 * np.eye(n), np.zeros(n), c.lower, c.upper, solver, c.rows, c.bound, soft)
+    if dq is None:
+        return None
+    miss = np.maximum(c.rows[m - k :] @ dq - c.bound[m - k :], 0.0)
+    out = c.bound.copy()
+    out[m - k :] += miss + 1e-9
+    return out
 
 
 def collision_rows(

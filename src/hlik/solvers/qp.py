@@ -36,6 +36,7 @@ from hlik.solvers.frames import (
     collision_rows,
     constrained_steps,
     iterate,
+    nearest_band,
     track,
 )
 from hlik.solvers.limits import LimitSettings, MotionLimits
@@ -71,10 +72,10 @@ class QPSettings(LimitSettings):
         max_step: Bound on any joint's change in one step, rad.
         solver: qpsolvers backend.
         position_band, orientation_band: The hands' tolerance band, m and rad (0: none, the
-            paper's weighted form): where the targets can be met, each target term's error after
-            the step stays within it, component by component within band / sqrt(3) (so its norm
-            within band), as inequalities with a slack that grows only where the band cannot
-            be met (:data:`~hlik.solvers.frames.BAND_PENALTY`); the criteria act inside it.
+            paper's weighted form): each target term's error after a step stays within it,
+            component by component within band / sqrt(3) (so its norm within band), as linear
+            inequalities below the body's; where no step can meet them, as near as the body's rows
+            let a step come (:func:`~hlik.solvers.frames.nearest_band`); the criteria act inside.
         self_collision: Keep every pair of the robot's collision geoms ``collision_margin`` apart
             (m), as linear inequalities on the step from their signed distances and gradients
             (the velocity damper of mink's ``CollisionAvoidanceLimit``: a pair closer than
@@ -205,10 +206,11 @@ def step(
     pairs: CollisionPairs | None = None,
     bounds: DistanceBounds | None = None,
     floors: tuple[np.ndarray, np.ndarray] | None = None,
-) -> np.ndarray:
+) -> np.ndarray | None:
     """One QP step from ``q`` (n,) within ``box`` (default: the joint limits), keeping the collision
     ``pairs`` apart (none closer than its ``floors``, :func:`~hlik.solvers.frames.collision_floors`):
-    the joint change dq (n,). Reuse ``data`` and the pairs' distance ``bounds`` across steps."""
+    the joint change dq (n,), or None where the QP solver found none. Reuse ``data`` and the pairs'
+    distance ``bounds`` across steps."""
     data = mujoco.MjData(robot.model) if data is None else data
     state = robot_state(robot, q, jacobians=bool(stack.sites), data=data, jacobian_sites=stack.sites)
     gradient = np.zeros(robot.dof)
@@ -236,14 +238,19 @@ def step(
     if pairs is not None and len(pairs):
         a_col, b_col = collision_rows(robot, data, pairs, bounds, settings, floors)  # q's kinematics in data
     dq = None
-    a_band = np.vstack(band_rows) if band_rows else np.zeros((0, robot.dof))
-    b_band = np.concatenate(band_bounds) if band_bounds else np.zeros(0)
-    for c in constrained_steps(box, q, settings.max_step, a_col, b_col, a_band, b_band):
+    a_band = np.vstack(band_rows) if band_rows else None
+    b_bands = (np.concatenate(band_bounds),) if band_rows else ()
+    tries = constrained_steps(box, q, settings.max_step, a_col, b_col, a_band, b_bands)
+    for k, c in enumerate(tries):
         dq = solve_qp(hessian, gradient, c.lower, c.upper, settings.solver, c.rows, c.bound, c.soft)
+        if dq is None and k == 0 and b_bands:  # the band out of reach: as near as the body allows
+            nearest = nearest_band(c, len(b_bands[0]), settings.solver)
+            if nearest is not None:
+                dq = solve_qp(hessian, gradient, c.lower, c.upper, settings.solver, c.rows, nearest)
         if dq is not None:
             break
     if dq is None or not np.all(np.isfinite(dq)):
-        return np.zeros(robot.dof)  # infeasible or failed step: stay (limits hold, nothing NaN)
+        return None  # no step found: the frame stays where it is, failed (limits hold, nothing NaN)
     return dq
 
 
