@@ -134,3 +134,14 @@ def test_the_package_gives_its_submodules_on_first_access():
     assert done.returncode == 0, done.stderr
     assert "demo_pour_wipe.xml []" in done.stdout, done.stdout
     assert "AttributeError module 'hlik' has no attribute 'no_such_thing'" in done.stdout, done.stdout
+
+
+@pytest.mark.parametrize("module", ["hlik", "hlik.cli"])
+def test_python_dash_m_runs_the_command_line(module):
+    import subprocess
+    import sys
+
+    done = subprocess.run(
+        [sys.executable, "-m", module, "--help"], capture_output=True, text=True, timeout=60
+    )
+    assert done.returncode == 0 and "Usage" in done.stdout and "run" in done.stdout, done.stdout + done.stderr

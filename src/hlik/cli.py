@@ -1053,3 +1053,7 @@ def _close(a: JointMap | None, b: JointMap) -> bool:
 
 def main() -> None:  # pragma: no cover
     app()
+
+
+if __name__ == "__main__":  # python -m hlik.cli
+    main()
