@@ -131,6 +131,32 @@ def slowed(motion, factor: float):
     return replace(motion, times=motion.times[0] + factor * (motion.times - motion.times[0]))
 
 
+def reachable_stretch(robot, take, start: float, stop: float, factor: float = 3.0):
+    """``take`` from ``start`` to ``stop`` s, played ``factor`` times slower at 100 Hz, with targets
+    the robot can reach (its own TCP poses along the joint mapping) and the robot at the shoulders:
+    (motion, targets, placement)."""
+    from hlik.human.kinematics import forward_kinematics
+    from hlik.human.load import load_motion
+    from hlik.problem.placement import shoulder_placement
+    from hlik.problem.targets import HandTargets
+    from hlik.robot.model import joint_mapping, tcp_poses
+
+    motion = slowed(load_motion(take, rate=100).crop(start, stop), factor).resample(100.0)
+    targets = HandTargets(*tcp_poses(robot, joint_mapping(robot, motion)))
+    return motion, targets, shoulder_placement(robot, forward_kinematics(motion))
+
+
+def hand_errors(robot, q, targets) -> tuple[float, float]:
+    """The largest position (m) and orientation (rad) error of either hand after the first frame
+    of joint angles ``q`` (T, n) against ``targets``."""
+    from hlik.criteria.functional import rotation_angle
+    from hlik.robot.state import robot_state
+
+    state = robot_state(robot, q)
+    pos = np.linalg.norm(state.tcp - targets.pos, axis=-1)[1:]
+    return float(pos.max()), float(rotation_angle(state.tcp_rot, targets.rot)[1:].max())
+
+
 def random_frame(robot, seed: int):
     """A frame of the demo on ``robot`` with a random configuration near home and a moving history:
     the sample and the configuration (n,)."""

@@ -81,7 +81,7 @@ def test_the_nearest_band_is_met_and_moves_only_the_rows_no_step_meets(seed):
     box = JointBox(q - half, q + half)
     a_band = rng.normal(size=(k, n))
     b_band = rng.normal(0, 0.2, k)  # some rows out of a step's reach
-    (c, *_) = constrained_steps(box, q, 0.2, np.zeros((0, n)), np.zeros(0), a_band, (b_band,))
+    (c, *_) = constrained_steps(box, q, 0.2, np.zeros((0, n)), np.zeros(0), a_band, b_band)
     nearest = nearest_band(c, k, "daqp")
     assert nearest is not None and np.all(nearest >= c.bound)
     a = rng.normal(size=(n, n))

@@ -159,25 +159,15 @@ def test_a_criterion_never_turns_a_reachable_hand_out_of_the_band(takes, robot, 
     bring 2-Panda's geoms closer than the margin (7.7 mm, 3.58 deg)."""
     from dataclasses import replace
 
-    from conftest import slowed, solve_problem
-    from hlik import load_motion, load_robot
-    from hlik.criteria.functional import rotation_angle
+    from conftest import hand_errors, reachable_stretch, solve_problem
+    from hlik import load_robot
     from hlik.criteria.learned import learn
-    from hlik.human.kinematics import forward_kinematics
-    from hlik.problem.placement import shoulder_placement
-    from hlik.problem.targets import HandTargets
-    from hlik.robot.model import joint_mapping, tcp_poses
-    from hlik.robot.state import robot_state
     from hlik.solvers import qp, slsqp
 
     r = load_robot(robot)
-    motion = slowed(load_motion(takes[2], rate=100).crop(start, start + 0.05), 3.0).resample(100.0)
-    targets = HandTargets(*tcp_poses(r, joint_mapping(r, motion)))
-    placement = shoulder_placement(r, forward_kinematics(motion))
-    band = dict(
-        position_band=_BAND[0], orientation_band=_BAND[1], acceleration_limits=False, torque_limits=False
-    )
-    band |= dict(self_collision=False)
+    motion, targets, placement = reachable_stretch(r, takes[2], start, start + 0.05)
+    band = dict(position_band=_BAND[0], orientation_band=_BAND[1])
+    band |= dict(acceleration_limits=False, torque_limits=False, self_collision=False)
     if solver == "qp":
         module, settings = qp, replace(qp.QPSettings(criteria=(criterion,), criterion_cost=1.0), **band)
     else:
@@ -186,7 +176,5 @@ def test_a_criterion_never_turns_a_reachable_hand_out_of_the_band(takes, robot, 
             slsqp.SLSQPSettings(criteria=(criterion,), criterion=40.0, orientation=1.0, **band),
         )
     q, _ = solve_problem(module.solve, r, motion, targets, placement, settings, learned=learn(r))
-    state = robot_state(r, q)
-    pos = np.linalg.norm(state.tcp - targets.pos, axis=-1)[1:]
-    ori = rotation_angle(state.tcp_rot, targets.rot)[1:]
-    assert pos.max() <= _BAND[0] + 1e-3 and ori.max() <= _BAND[1] + 2e-3, (pos.max(), np.degrees(ori.max()))
+    pos, ori = hand_errors(r, q, targets)
+    assert pos <= _BAND[0] + 1e-3 and ori <= _BAND[1] + 2e-3, (pos, np.degrees(ori))

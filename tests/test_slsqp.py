@@ -8,10 +8,10 @@ import nlopt
 import numpy as np
 import pytest
 
-from conftest import ROBOTS, random_frame, slowed, solve_problem
+from conftest import ROBOTS, hand_errors, random_frame, reachable_stretch, solve_problem
 from hlik import load_motion, load_robot, retarget
 from hlik.criteria import registry
-from hlik.criteria.functional import relative_errors, rotation_angle
+from hlik.criteria.functional import relative_errors
 from hlik.criteria.learned import learn
 from hlik.criteria.smoothness import VELOCITY, Smoothness
 from hlik.human.kinematics import forward_kinematics
@@ -396,23 +396,17 @@ def test_the_band_keeps_reachable_hands_on_target_while_the_criteria_shape_the_a
     criteria: without the band SLSQP turns the hands off their targets; with it every hand stays
     within 5 mm and 3 deg of its target after the first frame, and the arm still moves away from
     the mapping (the criteria act inside the band and in the null space)."""
-    from hlik.problem.targets import HandTargets
-    from hlik.robot.model import joint_mapping, tcp_poses
+    from hlik.robot.model import joint_mapping
 
     r = load_robot(name)
-    motion = slowed(load_motion(takes[0], rate=100).crop(2.0, 2.3), 3.0).resample(100.0)
-    targets = HandTargets(*tcp_poses(r, joint_mapping(r, motion)))
-    placement = shoulder_placement(r, forward_kinematics(motion))
+    motion, targets, placement = reachable_stretch(r, takes[0], 2.0, 2.3)
     strong = SLSQPSettings(criteria=("SYN", "HJA_r"), criterion=40.0, orientation=1.0)
     banded = replace(strong, position_band=0.005, orientation_band=np.radians(3.0))
     errors = {}
     for label, settings in (("free", strong), ("band", banded)):
         q, result = solve_problem(solve, r, motion, targets, placement, settings, learned=learn(r))
         assert not np.any(result.diagnostics.failed)
-        state = robot_state(r, q)
-        pos = np.linalg.norm(state.tcp - targets.pos, axis=-1)[1:]
-        ori = rotation_angle(state.tcp_rot, targets.rot)[1:]
-        errors[label] = (pos.max(), ori.max(), np.abs(q - joint_mapping(r, motion)).max())
+        errors[label] = (*hand_errors(r, q, targets), np.abs(q - joint_mapping(r, motion)).max())
     assert errors["free"][0] > 0.006 or errors["free"][1] > np.radians(4.0), errors
     assert errors["band"][0] <= 0.005 + 1e-3 and errors["band"][1] <= np.radians(3.0) + 2e-3, errors
     assert errors["band"][2] > 0.05, errors

@@ -49,14 +49,12 @@ def auto_scale(robot: Robot, motion: HumanMotion) -> float:
 def shoulder_gap(robot: Robot, motion: HumanMotion) -> float:
     """How far the subject's shoulders (midpoint, first frame) stand above the robot's at home, both
     on their floors, m."""
+    from hlik.fk import site_poses
     from hlik.human.kinematics import forward_kinematics
     from hlik.robot.floor import floor_height
 
-    data = mujoco.MjData(robot.model)
-    data.qpos[:] = robot.home
-    mujoco.mj_kinematics(robot.model, data)
-    ids = [robot.model.site(f"{side}_shoulder").id for side in SIDES]
-    robot_z = float(np.mean([data.site_xpos[i][2] for i in ids])) + floor_height(robot)
+    ids = np.array([robot.site_id(side, "shoulder") for side in SIDES])
+    robot_z = float(np.mean(site_poses(robot.model, robot.home[None], ids)[0][0, :, 2])) + floor_height(robot)
     human_z = float(np.mean(forward_kinematics(motion.frames(slice(0, 1))).shoulder[0, :, 2]))
     return human_z - robot_z
 

@@ -18,7 +18,8 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from hlik.criteria.base import Sample
+from hlik.criteria.base import Sample, Term
+from hlik.criteria.functional import fORI, fORI_off, fPOS, fPOS_off
 from hlik.problem.problem import Problem
 from hlik.problem.reference import HumanReference, reference_sample
 from hlik.problem.targets import HandTargets
@@ -162,7 +163,7 @@ def constrained_steps(
     a_col: np.ndarray,
     b_col: np.ndarray,
     a_band: np.ndarray | None = None,
-    b_bands: tuple[np.ndarray, ...] = (),
+    b_band: np.ndarray | None = None,
 ) -> list[StepConstraints]:
     """What a step from ``q`` (n,) inside ``box`` tries to keep, in order: (1) every row, the box's
     (torque), the collision rows ``a_col``, ``b_col`` (k, n), (k,) (:func:`collision_rows`) and the
@@ -175,8 +176,8 @@ def constrained_steps(
     margin was a jump of 40 times the limit, for a miss of the margin by 0.1 mm; and a collision
     row relaxed to "no worse than the step's start" let the arm coast into the body at its speed.
 
-    The hands' band ``a_band`` (k, n) is tried with each bound of ``b_bands`` in turn, before (2),
-    as hard rows; where the band is out of a step's reach, the QP moves its bound out by as little
+    The hands' band ``a_band``, ``b_band`` (k, n), (k,) is the first try's, as hard rows; where it
+    is out of a step's reach, the QP moves its bound out by as little
     as the body's rows allow (:func:`nearest_band`). Soft rows at a penalty high enough to act as
     a priority had left daqp's problem so badly scaled that it called every step infeasible, and
     a robot started 0.6 m from its targets never moved."""
@@ -184,9 +185,8 @@ def constrained_steps(
     a_box, b_box = box.step_rows(q)
     a, b = np.vstack([a_box, a_col]), np.concatenate([b_box, b_col])
     tries = []
-    if a_band is not None:
-        rows = np.vstack([a, a_band])
-        tries += [StepConstraints(lower, upper, rows, np.concatenate([b, bound])) for bound in b_bands]
+    if a_band is not None and b_band is not None:
+        tries.append(StepConstraints(lower, upper, np.vstack([a, a_band]), np.concatenate([b, b_band])))
     tries.append(StepConstraints(lower, upper, a, b))
     hard, collision = np.zeros(len(b_box)), np.full(len(b_col), COLLISION_PENALTY)
     if len(b_col):
@@ -195,6 +195,16 @@ def constrained_steps(
         torque = np.full(len(b_box), TORQUE_PENALTY)
         tries.append(StepConstraints(lower, upper, a, b, np.concatenate([torque, collision])))
     return tries
+
+
+def hand_band(term: Term, settings) -> float:
+    """The tolerance band of a target term under ``settings`` (``position_band`` for fPOS and
+    fPOS^off in m, ``orientation_band`` for fORI and fORI^off in rad), 0 for every other term."""
+    if isinstance(term, fORI | fORI_off):
+        return float(settings.orientation_band)
+    if isinstance(term, fPOS | fPOS_off):
+        return float(settings.position_band)
+    return 0.0
 
 
 def nearest_band(c: StepConstraints, k: int, solver: str) -> np.ndarray | None:

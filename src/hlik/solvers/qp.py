@@ -19,7 +19,7 @@ import numpy as np
 
 from hlik.criteria import registry, unified
 from hlik.criteria.base import Sample, Term
-from hlik.criteria.functional import fORI, fORI_off, fPOS, fPOS_off, target_terms
+from hlik.criteria.functional import target_terms
 from hlik.criteria.joints import TrunkUpright
 from hlik.criteria.learned import Learned, learn
 from hlik.criteria.smoothness import smoothness_terms
@@ -35,6 +35,7 @@ from hlik.solvers.frames import (
     collision_floors,
     collision_rows,
     constrained_steps,
+    hand_band,
     iterate,
     nearest_band,
     track,
@@ -218,7 +219,7 @@ def step(
     band_rows, band_bounds = [], []
     for term, w, gradient_map in zip(stack.terms, stack.weights, stack.gradient_maps):
         e, jac = term(state, frame)
-        band = _band(term, settings)
+        band = hand_band(term, settings) / np.sqrt(3.0)  # per component: the norm within the band
         if band > 0.0:  # -b <= e + J dq <= b per component, in the term's weighted units
             wj, we, wb = w * jac, w.ravel() * e, w.ravel() * band
             band_rows += [wj, -wj]
@@ -239,12 +240,12 @@ def step(
         a_col, b_col = collision_rows(robot, data, pairs, bounds, settings, floors)  # q's kinematics in data
     dq = None
     a_band = np.vstack(band_rows) if band_rows else None
-    b_bands = (np.concatenate(band_bounds),) if band_rows else ()
-    tries = constrained_steps(box, q, settings.max_step, a_col, b_col, a_band, b_bands)
+    b_band = np.concatenate(band_bounds) if band_rows else None
+    tries = constrained_steps(box, q, settings.max_step, a_col, b_col, a_band, b_band)
     for k, c in enumerate(tries):
         dq = solve_qp(hessian, gradient, c.lower, c.upper, settings.solver, c.rows, c.bound, c.soft)
-        if dq is None and k == 0 and b_bands:  # the band out of reach: as near as the body allows
-            nearest = nearest_band(c, len(b_bands[0]), settings.solver)
+        if dq is None and k == 0 and b_band is not None:  # the band out of reach: as near as the body allows
+            nearest = nearest_band(c, len(b_band), settings.solver)
             if nearest is not None:
                 dq = solve_qp(hessian, gradient, c.lower, c.upper, settings.solver, c.rows, nearest)
         if dq is not None:
@@ -252,16 +253,6 @@ def step(
     if dq is None or not np.all(np.isfinite(dq)):
         return None  # no step found: the frame stays where it is, failed (limits hold, nothing NaN)
     return dq
-
-
-def _band(term: Term, settings: QPSettings) -> float:
-    """The per-component band of a target term under ``settings`` (0: none, and for every other
-    term): position or orientation band over sqrt(3)."""
-    if isinstance(term, fORI | fORI_off):
-        return settings.orientation_band / np.sqrt(3.0)
-    if isinstance(term, fPOS | fPOS_off):
-        return settings.position_band / np.sqrt(3.0)
-    return 0.0
 
 
 def solve(

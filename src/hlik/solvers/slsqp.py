@@ -47,7 +47,7 @@ from hlik.robot.collision import CollisionPairs, DistanceBounds, collision_pairs
 from hlik.robot.model import Robot
 from hlik.robot.state import robot_state
 from hlik.solvers.base import ConfiguredSolver, SolverResult, check_settings
-from hlik.solvers.frames import FrameResult, JointBox, collision_floors, track
+from hlik.solvers.frames import FrameResult, JointBox, collision_floors, hand_band, track
 from hlik.solvers.limits import LimitSettings, MotionLimits
 
 # Sec. IV-A's gamma_p = 10 for the TCP position. The relative position (m, like fPOS) gets it too:
@@ -611,11 +611,9 @@ class BandConstraint:
     """
 
     def __init__(self, robot: Robot, losses: Sequence[Loss], settings: SLSQPSettings):
-        bands: dict[type[Term], float] = {fPOS: settings.position_band, fPOS_off: settings.position_band}
-        bands |= {fORI: settings.orientation_band, fORI_off: settings.orientation_band}
         self.robot = robot
-        self.terms = [loss.term for loss in losses if bands.get(type(loss.term), 0.0) > 0.0]
-        self.bands = [bands[type(t)] for t in self.terms]
+        self.terms = [loss.term for loss in losses if hand_band(loss.term, settings) > 0.0]
+        self.bands = [hand_band(t, settings) for t in self.terms]
         self.sites = _sites(t.sites for t in self.terms)
         self.data = mujoco.MjData(robot.model)
         self.chart: Chart | None = None
@@ -782,14 +780,16 @@ def solve(
     opt = make_optimizer(robot, settings)
     pairs = collision_pairs(robot) if settings.self_collision else None
     collision = CollisionConstraint(robot, pairs, settings) if pairs is not None and len(pairs) else None
-    bands = {id(o): BandConstraint(robot, o.losses, settings) for o in (objective, first)}
+    band, first_band = (BandConstraint(robot, o.losses, settings) for o in (objective, first))
     status = np.zeros(problem.n_frames, dtype=int)
 
     def solve_frame_k(k: int, frame: Sample, q: np.ndarray, box: JointBox) -> FrameResult:
-        obj, max_eval = (first, settings.first_eval) if k == 0 else (objective, settings.max_eval)
+        obj, max_eval, hands = (
+            (first, settings.first_eval, first_band) if k == 0 else (objective, settings.max_eval, band)
+        )
         if collision is not None:
             collision.brake(box)
-        q, status[k] = solve_frame(opt, obj, frame, box.clip(q), max_eval, box, collision, bands[id(obj)])
+        q, status[k] = solve_frame(opt, obj, frame, box.clip(q), max_eval, box, collision, hands)
         converged = status[k] > 0 and status[k] != nlopt.MAXEVAL_REACHED
         return FrameResult(box.clip(q), obj.evaluations, converged, status[k] < 0)
 
