@@ -213,21 +213,24 @@ def test_auto_scale_fits_the_subject_to_the_g1_arms(g1, cut_take, tmp_path):
     assert not list(tmp_path.iterdir())
 
 
-def test_auto_scale_warns_where_it_lifts_the_subjects_shoulders_off_the_robots(g1, cut_take):
-    """``auto`` scales by arm length about the floor: right for the G1 (a small person's build), but
-    ARMAR-6's arms are 1.5x the subject's at about its height, so the scaled subject's shoulders
-    stand 0.7 m above the robot's; that is said in a note (a run's warning) naming the file."""
-    from hlik.human import load_motion
-    from hlik.problem.scale import SHOULDER_GAP, scale_subject, shoulder_gap
+def test_auto_scale_keeps_the_subjects_reach_about_the_robots_shoulders(g1, cut_take):
+    """``auto`` scales about the subject's shoulders and stands them at the robot's shoulder height:
+    the hands' offsets from the shoulders scale by the arm ratio exactly, on the G1 (x0.8) and on
+    ARMAR-6 (x1.5: about the floor its shoulders stood 0.7 m above the robot's, the targets over its
+    head); where the feet leave the floor the note says by how much."""
+    from hlik.human import forward_kinematics, load_motion
+    from hlik.problem.scale import auto_scale, scale_subject, shoulder_heights
 
     motion = load_motion(cut_take).frames(slice(0, 5))
-    small = scale_subject(motion, g1, "auto")
-    assert abs(shoulder_gap(g1, small)) < SHOULDER_GAP and not any(
-        "above the robot" in n for n in small.notes
-    )
-    armar6 = load_robot("armar6")
-    assert abs(shoulder_gap(armar6, motion)) < 0.05  # as recorded, the shoulders meet
-    big = scale_subject(motion, armar6, "auto")
-    assert 0.6 < shoulder_gap(armar6, big) < 0.8
-    (note,) = [n for n in big.notes if "above the robot" in n]
-    assert note.startswith(str(cut_take)) and "ARMAR-6's arms are long for its height" in note
+    a = forward_kinematics(motion)
+    for robot in (g1, load_robot("armar6")):
+        factor = auto_scale(robot, motion)
+        scaled = scale_subject(motion, robot, "auto")
+        b = forward_kinematics(scaled)
+        mid_a, mid_b = a.shoulder.mean(axis=1, keepdims=True), b.shoulder.mean(axis=1, keepdims=True)
+        np.testing.assert_allclose(b.tcp_pos - mid_b, factor * (a.tcp_pos - mid_a), atol=1e-9)
+        shoulders, robot_z = shoulder_heights(robot, scaled)
+        assert abs(shoulders[2] - robot_z) < 1e-9
+        note = scaled.notes[-1]
+        assert note.startswith(str(cut_take)) and "about its shoulders" in note and "off the floor" in note
+    assert 1.4 < auto_scale(load_robot("armar6"), motion) < 1.6 and "feet -0.7" in note

@@ -135,10 +135,13 @@ class HumanMotion:
         """(T, k) angles of the named joints, in the order given."""
         return np.stack([self.joint(n) for n in names], axis=1)
 
-    def scaled(self, factor: float, why: str = "") -> HumanMotion:
+    def scaled(
+        self, factor: float, why: str = "", about: np.ndarray | None = None, to: np.ndarray | None = None
+    ) -> HumanMotion:
         """The same motion by a subject ``factor`` times as tall: the height, root, markers and object
-        positions (world, about the origin; the floor at z = 0 stays) scale, the joint angles stay.
-        ``why`` goes into a note.
+        positions scale about the world point ``about`` (3,), m, which moves to ``to`` (3,); both
+        default to the origin, so the floor at z = 0 stays. The joint angles stay. ``why`` goes into
+        a note.
 
         Raises:
             hlik.errors.SettingsError: ``factor`` is not a positive finite number.
@@ -146,8 +149,14 @@ class HumanMotion:
         if not (math.isfinite(factor) and factor > 0):
             where = self.source or self.name
             raise SettingsError(f"{where}: subject scale must be positive, got {factor:g}")
-        if factor == 1.0:
+        c = np.zeros(3) if about is None else np.asarray(about, dtype=float)
+        d = c if to is None else np.asarray(to, dtype=float)
+        if factor == 1.0 and np.array_equal(c, d):
             return self
+
+        def move(p: np.ndarray) -> np.ndarray:
+            return d + factor * (p - c)
+
         note = (
             f"{self.source or self.name}: subject scaled by {factor:.3f} "
             f"({self.height:.2f} m -> {factor * self.height:.2f} m){why}"
@@ -155,12 +164,10 @@ class HumanMotion:
         return replace(
             self,
             height=self.height * factor,
-            root_position=self.root_position * factor,
-            markers={k: v * factor for k, v in self.markers.items()},
+            root_position=move(self.root_position),
+            markers={k: move(v) for k, v in self.markers.items()},
             objects={
-                k: replace(
-                    o, position=o.position * factor, markers={m: factor * v for m, v in o.markers.items()}
-                )
+                k: replace(o, position=move(o.position), markers={m: move(v) for m, v in o.markers.items()})
                 for k, o in self.objects.items()
             },
             notes=(*self.notes, note),

@@ -4,13 +4,12 @@ The paper retargets hand poses as recorded, to robots about a person's size (``s
 the default). A robot much smaller or larger than the subject cannot reach the recorded hand poses
 with any posture; ``auto`` scales the subject (:meth:`HumanMotion.scaled`: height, root and hand
 positions; the joint angles stay) by the robot's arm length over the subject's, the usual
-human-to-robot scaling of retargeting tools.
+human-to-robot scaling of retargeting tools, about the shoulders.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import replace
 
 import mujoco
 import numpy as np
@@ -22,10 +21,6 @@ from hlik.robot.model import SIDES, Robot
 
 ARM = ("shoulder", "elbow", "wrist", "tcp")
 SCALE_RANGE = (0.1, 10.0)  # a factor outside it is a typo, not a robot
-# m: a scaled subject whose shoulders stand farther than this above or below the robot's puts the
-# hand targets out of the robot's reach (ARMAR-6's arms are 1.5x the KIT subject's at about its
-# height: ``auto`` makes the subject 2.54 m tall, the hands 0.7 m above the robot's shoulders)
-SHOULDER_GAP = 0.15
 
 
 def arm_length(model: mujoco.MjModel, qpos: np.ndarray) -> float:
@@ -46,22 +41,28 @@ def auto_scale(robot: Robot, motion: HumanMotion) -> float:
     return arm_length(robot.model, robot.home) / arm_length(human, human.qpos0)
 
 
-def shoulder_gap(robot: Robot, motion: HumanMotion) -> float:
-    """How far the subject's shoulders (midpoint, first frame) stand above the robot's at home, both
-    on their floors, m."""
+def shoulder_heights(robot: Robot, motion: HumanMotion) -> tuple[np.ndarray, float]:
+    """The subject's shoulder midpoint at the first frame (3,), world, m, and the height of the
+    robot's at home standing on the floor, m."""
     from hlik.fk import site_poses
     from hlik.human.kinematics import forward_kinematics
     from hlik.robot.floor import floor_height
 
     ids = np.array([robot.site_id(side, "shoulder") for side in SIDES])
     robot_z = float(np.mean(site_poses(robot.model, robot.home[None], ids)[0][0, :, 2])) + floor_height(robot)
-    human_z = float(np.mean(forward_kinematics(motion.frames(slice(0, 1))).shoulder[0, :, 2]))
-    return human_z - robot_z
+    human = np.mean(forward_kinematics(motion.frames(slice(0, 1))).shoulder[0], axis=0)
+    return human, robot_z
 
 
 def scale_subject(motion: HumanMotion, robot: Robot, rule: float | str | None = None) -> HumanMotion:
-    """``motion`` by a subject scaled by ``rule``: a factor, ``"auto"`` (:func:`auto_scale`), or None
-    for the robot's own (``Robot.subject_scale``).
+    """``motion`` by a subject scaled by ``rule``: a factor (about the origin, the floor stays),
+    ``"auto"``, or None for the robot's own (``Robot.subject_scale``).
+
+    ``auto`` scales by :func:`auto_scale` about the subject's shoulders (first frame), which then
+    stand at the height of the robot's: the hand targets keep the subject's reach in arm lengths
+    about the shoulders. Scaled about the floor, a robot whose arms are long for its height would
+    get targets above its head (ARMAR-6: x1.51, the scaled subject's shoulders 0.73 m above the
+    robot's); the subject's feet leave the floor instead, by :func:`shoulder_heights`' gap.
 
     Raises:
         SettingsError: a rule that is neither ``auto`` nor a positive number.
@@ -69,18 +70,13 @@ def scale_subject(motion: HumanMotion, robot: Robot, rule: float | str | None = 
     rule = robot.subject_scale if rule is None else rule
     if rule == "auto":
         factor = auto_scale(robot, motion)
-        scaled = motion.scaled(factor, f" to {robot.title}'s arms (subject_scale auto)")
-        gap = shoulder_gap(robot, scaled)
-        if abs(gap) > SHOULDER_GAP:
-            where = motion.source or motion.name
-            side = "above" if gap > 0 else "below"
-            note = (
-                f"{where}: the subject scaled to {robot.title}'s arms has its shoulders {abs(gap):.2f} m "
-                f"{side} the robot's, and the hand targets with them: {robot.title}'s arms are "
-                f"{'long' if gap > 0 else 'short'} for its height (--scale or subject_scale: 1, or a factor)"
-            )
-            scaled = replace(scaled, notes=(*scaled.notes, note))
-        return scaled
+        shoulders, robot_z = shoulder_heights(robot, motion)
+        lift = robot_z - factor * shoulders[2]
+        why = (
+            f" to {robot.title}'s arms about its shoulders "
+            f"(subject_scale auto; feet {lift:+.2f} m off the floor)"
+        )
+        return motion.scaled(factor, why, about=shoulders, to=np.array([*shoulders[:2], robot_z]))
     try:
         factor = float(rule)
     except (TypeError, ValueError):
