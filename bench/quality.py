@@ -30,8 +30,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import time
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -39,13 +37,9 @@ import numpy as np
 import hlik
 from hlik.criteria.functional import position_error, relative_errors, rotation_angle
 from hlik.criteria.learned import learn
-from hlik.metrics import evaluate
-from hlik.placement_search import optimize_placement
-from hlik.problem.placement import placement_from_spec
-from hlik.problem.scale import scale_subject
+from hlik.pipeline import RunSpec
+from hlik.pipeline import run as run_pipeline
 from hlik.robot.state import robot_state
-from hlik.solvers import get_solver
-from hlik.solvers.stack_file import load_stack
 
 DATA = Path(os.environ.get("HLIK_DATA", Path(__file__).resolve().parents[2] / "shared" / "motion_data"))
 DEFAULT = "jm,jv,qp,qp+SYN,qp+HJA_r,slsqp,slsqp+SYN,slsqp+HJA_r"
@@ -75,32 +69,33 @@ def run(
     overrides: dict,
     placement: str | None = None,
     stack_name: str | None = None,
+    scale: str | None = None,
 ) -> dict:
     robot = hlik.load_robot(robot_name)
     solver, *criteria = approach.split("+")
     solver, _, own_stack = solver.partition("@")
     stack_name = own_stack or stack_name or ("relative_pose" if scenario == "relative" else "ee_pose")
-    stack = load_stack(stack_name).with_criteria(criteria)
     learned = learn(robot)
-    settings = replace(stack.settings(solver), **overrides) if solver != "jm" else None
-    qp_overrides = overrides if solver == "qp" else {}
     rows, fpos, freach, off, times, capped, speed, contact = [], [], [], [], [], [], [], []
     acc, acc_over, tau, tau_over, stop, floor, fori = [], [], [], [], [], [], []
     lean, behind, subject_behind, hands, path = [], [], [], [], []
     for take in takes:
-        motion = hlik.load_motion(take, rate=100.0)
-        motion = scale_subject(motion.crop(1.0, min(1.0 + seconds, motion.duration)), robot)
-        placement = placement or robot.placement
-        if placement == "optimize":
-            fast = get_solver("qp", replace(stack.settings("qp"), **qp_overrides), learned)
-            where, _ = optimize_placement(motion, robot, fast, learned, scenario)
-        else:
-            where = placement_from_spec(placement, robot, motion)
-        start = time.perf_counter()
-        traj = hlik.retarget(motion, robot, get_solver(solver, settings, learned), where)
-        times.append((time.perf_counter() - start) / traj.n_frames)
+        spec = RunSpec(
+            motion=take,
+            robot=robot_name,
+            solver=solver,
+            stack=stack_name,
+            criteria=tuple(criteria),
+            scenario=scenario,
+            placement=placement,
+            scale=scale,
+            span=(1.0, 1.0 + seconds),
+            settings=overrides,
+        )
+        result = run_pipeline(spec, robot=robot, learned=learned)
+        traj, ev = result.trajectory, result.evaluation
+        times.append(result.solve_seconds / traj.n_frames)
         capped.append(~traj.diagnostics.converged)
-        ev = evaluate(traj, robot, learned, scenario=scenario)
         err = position_error(traj.tcp_pos, traj.targets.pos)
         rows.append((ev.m_hl, ev.m_f, ev.m_hl_f))
         speed.append(ev.max_speed_ratio)
@@ -159,6 +154,7 @@ def main() -> None:
     parser.add_argument("--seconds", type=float, default=5.0)
     parser.add_argument("--placement", default=None, help="reach, mapped, optimize, shoulders or X,Y,YAW")
     parser.add_argument("--takes", type=int, default=8, help="use the first N takes")
+    parser.add_argument("--scale", default=None, help="subject scale: auto or a factor (default the robot's)")
     parser.add_argument("--set", action="append", default=[], help="override a setting: name=value")
     args = parser.parse_args()
     overrides = {k: _setting(v) for k, v in (item.split("=", 1) for item in args.set)}
@@ -166,7 +162,10 @@ def main() -> None:
     if not takes:
         raise SystemExit(f"{DATA / 'kit_bimanual'}: no takes (set HLIK_DATA)")
     where = args.placement or "the robot's"
-    print(f"{len(takes)} takes x {args.seconds:g} s, scenario {args.scenario}, placement {where}")
+    scale = args.scale or "the robot's"
+    print(
+        f"{len(takes)} takes x {args.seconds:g} s, scenario {args.scenario}, placement {where}, scale {scale}"
+    )
     head = f"{'robot':11s} {'approach':18s} {'m_hl':>6s} {'m_f':>6s} {'m_hl,f':>6s} "
     cols = (
         ("fPOS cm", 8),
@@ -194,7 +193,17 @@ def main() -> None:
     for robot_name in args.robots.split(","):
         for approach in args.approaches.split(","):
             where = args.placement
-            r = run(robot_name, approach, args.scenario, takes, args.seconds, overrides, where, args.stack)
+            r = run(
+                robot_name,
+                approach,
+                args.scenario,
+                takes,
+                args.seconds,
+                overrides,
+                where,
+                args.stack,
+                args.scale,
+            )
             print(
                 f"{robot_name:11s} {approach:18s} {r['m_hl']:6.3f} {r['m_f']:6.3f} {r['m_hl_f']:6.3f} "
                 f"{100 * r['fpos']:8.2f} {100 * r['freach']:8.2f} {100 * r['fpos_off']:7.2f} {r['ms']:8.2f} "

@@ -24,7 +24,6 @@ import hlik
 from hlik.criteria.learned import learn
 from hlik.metrics import evaluate
 from hlik.problem.placement import placement_from_spec
-from hlik.problem.scale import scale_subject
 from hlik.solvers import get_solver
 from hlik.solvers.slsqp import PRECONDITIONERS
 from hlik.solvers.stack_file import load_stack
@@ -55,7 +54,7 @@ def main() -> None:
         learned = learn(robot)
         scenes = []
         for take in takes:
-            motion = scale_subject(cell_motion(take, args.seconds, 100.0), robot)  # as a study cell
+            motion = cell_motion(take, args.seconds, 100.0, robot)  # as a study cell
             scenes.append((motion, placement_from_spec(robot.placement, robot, motion)))
         stats: dict[str, list] = {p: [[], [], [], [], [], []] for p in PRECONDITIONERS}
         for repeat in range(args.repeats):

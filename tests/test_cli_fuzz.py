@@ -200,12 +200,12 @@ def test_a_failed_run_creates_no_output_folder(tmp_path, monkeypatch):
 
 
 def test_ctrl_c_ends_in_one_line_and_exit_130(tmp_path, monkeypatch):
-    import hlik.human.load
+    import hlik.pipeline
 
     def interrupt(*args, **kwargs):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(hlik.human.load, "load_motion", interrupt)
+    monkeypatch.setattr(hlik.pipeline, "load_motion", interrupt)
     result = _invoke(["run", "--out", str(tmp_path / "x.rrd")])
     assert result.exit_code == 130, result.output
     assert result.stderr.strip() == "error: interrupted; nothing written", result.stderr

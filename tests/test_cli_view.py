@@ -21,9 +21,10 @@ from hypothesis import strategies as st
 from typer.testing import CliRunner
 
 from conftest import data_file, kit_takes
-from hlik.cli import _run_tag, _run_warnings, app
+from hlik.cli import _run_tag, app
 from hlik.criteria.functional import position_error
 from hlik.errors import SettingsError
+from hlik.findings import run_warnings
 from hlik.human.load import load_motion
 from hlik.human.mmm_format import write_mmm
 from hlik.paths import corpus_setting, tasks_dir
@@ -194,6 +195,16 @@ def test_low_native_rate_and_limits_are_warned_as_the_scores_say(tmp_path):
         assert f"in {scores['collisions']} of " in touching[0]
 
 
+def _errors(traj) -> dict:
+    """The evaluation's tracking errors of a stand-in trajectory (as :func:`hlik.metrics.evaluate`)."""
+    from hlik.criteria.functional import position_error, rotation_angle
+
+    return {
+        "fpos": position_error(traj.tcp_pos, traj.targets.pos),
+        "fori": rotation_angle(traj.tcp_rot, traj.targets.rot),
+    }
+
+
 @settings(max_examples=40, deadline=None)
 @given(
     n=st.integers(1, 500),
@@ -223,9 +234,13 @@ def test_solver_and_body_warnings_count_frames(
         diagnostics=diag,
     )
     ev = SimpleNamespace(
-        collisions=np.arange(n) < touching, max_speed_ratio=speed, scenario=scenario, controller=_checks(n)
+        collisions=np.arange(n) < touching,
+        max_speed_ratio=speed,
+        scenario=scenario,
+        controller=_checks(n),
+        **_errors(traj),
     )
-    notes = _run_warnings(traj, SimpleNamespace(rate=native), ev, rate)
+    notes = run_warnings(traj, SimpleNamespace(rate=native), ev, rate)
     assert all("\n" not in note for note in notes)
     expected = [(failed, "failed"), (capped, "iteration cap"), (touching, "self-collision")]
     for count, word in expected:
@@ -262,10 +277,14 @@ def test_a_hand_turned_away_from_its_target_is_warned_about():
     )
     for scenario in ("pose", "relative"):
         ev = SimpleNamespace(
-            collisions=np.zeros(n, bool), max_speed_ratio=1.0, scenario=scenario, controller=_checks(n)
+            collisions=np.zeros(n, bool),
+            max_speed_ratio=1.0,
+            scenario=scenario,
+            controller=_checks(n),
+            **_errors(traj),
         )
         notes = [
-            note for note in _run_warnings(traj, SimpleNamespace(rate=100.0), ev, 100.0) if "turned" in note
+            note for note in run_warnings(traj, SimpleNamespace(rate=100.0), ev, 100.0) if "turned" in note
         ]
         # relative runs follow the other hand, not the human's hand orientations
         expected = ["left hand turned more than 30° from its target in 20 of 40 frames (50 %), up to 90°"]
@@ -508,12 +527,12 @@ def _checks(n: int, **changes):
 
 @pytest.mark.parametrize("solver", ["jm", "qp"])
 def test_each_exceeded_controller_limit_gets_one_warning(solver):
-    from hlik.cli import _controller_warnings
+    from hlik.findings import controller_warnings
 
     n = 100
     share = lambda k: f"{k} of {n} frames"  # noqa: E731
     tracking = solver != "jm"
-    assert _controller_warnings(_checks(n), tracking, share) == []
+    assert controller_warnings(_checks(n), tracking, share) == []
     over = np.where(np.arange(n) < 7, 1.5, 0.5)
     cases = {
         "accelerations exceed": dict(acceleration_ratio=over, acceleration=over[:, None]),
@@ -523,7 +542,7 @@ def test_each_exceeded_controller_limit_gets_one_warning(solver):
         "below the floor": dict(lowest=np.full(n, -0.05)),
     }
     for words, change in cases.items():
-        notes = _controller_warnings(_checks(n, **change), tracking, share)
+        notes = controller_warnings(_checks(n, **change), tracking, share)
         # jm maps the joints: its accelerations and jerks are not warned about, its torques are
         expected = 0 if (words in ("accelerations exceed", "jerks exceed") and not tracking) else 1
         assert len(notes) == expected and all(words in note for note in notes), (words, notes)

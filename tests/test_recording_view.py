@@ -31,7 +31,6 @@ from hlik.recording import (
     robot_camera,
     scene_camera,
     score_window,
-    unified_curves,
     write_recording,
 )
 from hlik.retarget import retarget
@@ -110,7 +109,7 @@ def test_unified_curves_average_to_the_scores(run):
     traj, ev, _, _, temporal = run
     window = score_window(traj)
     assert window == 21  # 0.2 s at 100 Hz
-    m_hl, m_f = unified_curves(ev, window)
+    m_hl, m_f = ev.unified_curves(window)
     assert np.mean(m_hl) == pytest.approx(ev.m_hl, abs=1e-12)
     assert np.mean(m_f) == pytest.approx(ev.m_f, abs=1e-12)
     np.testing.assert_array_equal(_scalars(temporal["/plots/unified/m_hl"]), m_hl)

@@ -194,11 +194,11 @@ def test_failed_recording_leaves_nothing(tmp_path, monkeypatch):
 
 
 def test_summary_reports_where_the_hands_lag():
-    from hlik.cli import LAG, _lag_spans
+    from hlik.findings import LAG, lag_spans
 
     times = np.arange(50) * 0.01
     fpos = np.zeros((50, 2))
     fpos[10:20, 0] = 2 * LAG
     fpos[30:35] = 3 * LAG
-    assert _lag_spans(fpos, times) == "0.10-0.19 s (left), 0.30-0.34 s (both); 15 frames"
-    assert _lag_spans(np.zeros((50, 2)), times) == ""
+    assert lag_spans(fpos, times) == "0.10-0.19 s (left), 0.30-0.34 s (both); 15 frames"
+    assert lag_spans(np.zeros((50, 2)), times) == ""

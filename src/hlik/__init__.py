@@ -17,6 +17,7 @@ if TYPE_CHECKING:
     from hlik.human.kinematics import HumanKinematics
     from hlik.human.load import load_motion
     from hlik.human.motion import HumanMotion, ObjectMotion
+    from hlik.pipeline import RunResult, RunSpec, run
     from hlik.recording import write_recording
     from hlik.retarget import retarget
     from hlik.robot.model import Robot, available_robots, load_robot
@@ -32,6 +33,9 @@ _WHERE = {
     "load_motion": "hlik.human.load",
     "HumanMotion": "hlik.human.motion",
     "ObjectMotion": "hlik.human.motion",
+    "RunResult": "hlik.pipeline",
+    "RunSpec": "hlik.pipeline",
+    "run": "hlik.pipeline",
     "write_recording": "hlik.recording",
     "retarget": "hlik.retarget",
     "Robot": "hlik.robot.model",
@@ -49,6 +53,8 @@ __all__ = [
     "ObjectMotion",
     "Robot",
     "RobotError",
+    "RunResult",
+    "RunSpec",
     "Trajectory",
     "TrajectoryFormatError",
     "available_robots",
@@ -56,6 +62,7 @@ __all__ = [
     "load_robot",
     "load_trajectory",
     "retarget",
+    "run",
     "write_recording",
 ]
 __version__ = "0.1.0"

@@ -7,10 +7,8 @@ import os
 import re
 import shlex
 import sys
-import time
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
-from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any
 
@@ -27,14 +25,12 @@ from hlik.paths import corpus_setting, demo_motion_path
 if TYPE_CHECKING:  # imported where used: `hlik --help` stays quick
     import numpy as np
 
-    from hlik.human.motion import HumanMotion
     from hlik.metrics import Evaluation
     from hlik.robot.mapping import JointMap
     from hlik.robot.model import Robot
     from hlik.trajectory import Trajectory
 
 _FLAG = ""  # metavar of an on/off option: typer would show it as `--json <bool>`, taking a value
-RATE_RANGE = (1.0, 10000.0)  # Hz a motion may be resampled to (0 keeps its own)
 
 
 def _warn(notes) -> None:
@@ -217,122 +213,88 @@ def run(
     metric: MetricOpt = None,
 ) -> None:
     """Retarget a motion to a robot; write a Rerun recording and the trajectory (.npz) beside it."""
-    from hlik.criteria.learned import learn
-    from hlik.criteria.unified import load_metric
-    from hlik.human.load import load_motion
-    from hlik.metrics import evaluate as evaluate_trajectory
     from hlik.paths import tasks_dir
-    from hlik.placement_search import optimize_placement
-    from hlik.problem.placement import placement_from_spec, placement_notes
-    from hlik.problem.scale import scale_subject
+    from hlik.pipeline import RunSpec
+    from hlik.pipeline import run as run_pipeline
     from hlik.recording import LAYOUTS
-    from hlik.retarget import retarget
     from hlik.robot.model import load_robot
-    from hlik.robot.reachability import reachability_map
-    from hlik.solvers import SOLVER_NAMES, get_solver
-    from hlik.solvers.stack_file import load_stack
 
-    path = motion or demo_motion_path()
     with _one_line():
-        if solver not in SOLVER_NAMES:
-            raise HlikError(f"unknown solver {solver!r}; choose one of: {', '.join(SOLVER_NAMES)}")
-        task_stack = load_stack(stack)
-        if criteria is not None:
-            task_stack = task_stack.with_criteria([c.strip() for c in criteria.split(",") if c.strip()])
-        chosen = task_stack.criteria
-        if chosen and solver == "jm":
-            raise HlikError("jm maps joints and cannot add criteria; choose --solver jv, qp or slsqp")
-        scenario = scenario or task_stack.scenario
-        if gradients not in ("analytic", "fd"):
-            raise HlikError(f"unknown gradients {gradients!r}; choose analytic or fd")
-        if gradients == "fd" and solver != "slsqp":
-            raise HlikError("--gradients fd is for --solver slsqp")
+        corpus, corpus_source = (corpus, "--corpus") if corpus is not None else corpus_setting()
+        chosen = None if criteria is None else tuple(c.strip() for c in criteria.split(",") if c.strip())
+        spec = RunSpec(
+            motion,
+            robot,
+            solver,
+            stack,
+            chosen,
+            scenario,
+            placement,
+            scale,
+            rate,
+            None,
+            corpus,
+            metric,
+            gradients,
+        )
         if layout not in LAYOUTS:
             raise HlikError(f"unknown layout {layout!r}; choose one of: {', '.join(LAYOUTS)}")
-        _check_scenario(scenario)
-        _check_rate(rate)
-        _check_placement(placement)
+        task_stack = spec.check()
         r = load_robot(robot)
-        unified_metric = load_metric(metric) if metric is not None else None
-        corpus, corpus_source = (corpus, "--corpus") if corpus is not None else corpus_setting()
         bundled = not Path(stack).exists() and (tasks_dir() / f"{stack}.toml").is_file()
         tag = _run_tag(
             solver=solver,
             stack=task_stack.name if bundled else _stack_label(Path(stack).stem, task_stack.name),
             default_stack=bundled and task_stack.name == "ee_pose",
-            criteria=chosen,
+            criteria=task_stack.criteria,
             gradients=gradients,
             placement=placement if placement not in (None, r.placement) else None,
             scale=scale if scale not in (None, str(r.subject_scale)) else None,
-            scenario=scenario if scenario != task_stack.scenario else None,
+            scenario=scenario if scenario not in (None, task_stack.scenario) else None,
             metric=metric,
             rate=rate,
             layout=layout,
             corpus=corpus,
         )
+        path = spec.motion_path
         rrd = out or Path("recordings") / f"{_file_stem(path.stem, r.name, tag)}.rrd"
         npz = rrd.with_suffix(".npz")
         inputs = [path, metric, robot, stack, tasks_dir() / f"{stack}.toml"]
         _check_outputs(rrd, npz, inputs, create=out is None, force=force)
-        with _progress(spinner=True) as progress:
-            task = progress.add_task(f"reading {path.name}", total=None)
-            m = scale_subject(load_motion(path, rate=rate or None), r, scale)
-
-            def counting(description: str):  # a (k, n) callback: a bar for one stage
-                progress.update(task, description=description, total=None, completed=0)
-                return lambda k, n: progress.update(task, completed=k, total=n)
-
-            learned = learn(r, corpus, progress=counting(f"learning {r.title}'s criteria from the corpus"))
-            placement = placement or r.placement
-            notes = [*m.notes, *learned.notes]
-            if placement in ("reach", "optimize"):  # sampled or read once; placement reads the cache
-                sampling = counting(f"reachability map of {r.title}")
-                notes += reachability_map(r, progress=sampling).notes
-            progress.update(task, description=f"placing {r.title} ({placement})", total=None)
-            tried: list = []
-            if placement == "optimize":
-                fast = get_solver("qp", task_stack.settings("qp"), learned)
-                where, tried = optimize_placement(m, r, fast, learned, scenario)
-            else:
-                where = placement_from_spec(placement, r, m)
-            notes += placement_notes(r, where)  # a base given off its floor
-            progress.update(
-                task, description=f"retargeting to {r.title} ({tag})", total=m.n_frames, completed=0
+        with _progress(spinner=True) as bar:
+            task = bar.add_task("", total=None)
+            result = run_pipeline(
+                spec,
+                lambda stage, done, total: bar.update(
+                    task, description=stage, completed=done or 0, total=total
+                ),
+                robot=r,
             )
-            start = time.perf_counter()
-            step = lambda k: progress.update(task, completed=k + 1)  # noqa: E731
-            settings = None if solver == "jm" else task_stack.settings(solver)
-            if solver == "slsqp":
-                settings = replace(task_stack.settings("slsqp"), gradients=gradients)
-            traj = retarget(m, r, get_solver(solver, settings, learned, step), where)
-            progress.update(task, completed=m.n_frames)
-            solve_time = time.perf_counter() - start
-            progress.update(task, description="evaluating the criteria", total=None)
-            ev = evaluate_trajectory(traj, r, learned, scenario=scenario, metric=unified_metric)
-            progress.update(task, description=f"writing {rrd}")
+            bar.update(task, description=f"writing {rrd}", total=None)
             info = {
                 "stack": stack,
-                "criteria": ", ".join(chosen) or "-",
-                "scenario": scenario,
-                "placement": placement,
-                "corpus": _corpus_label(corpus, learned.corpus),
+                "criteria": ", ".join(task_stack.criteria) or "-",
+                "scenario": result.scenario,
+                "placement": placement or r.placement,
+                "corpus": _corpus_label(corpus, result.learned.corpus),
                 "gradients": gradients,
             }
-            write_outputs(npz, rrd, traj, r, layout, evaluation=ev, info=info)
-    summary = _run_summary(path.stem, traj, m, solve_time, rrd, npz, ev)
-    summary.add_row("criteria learned from", _corpus_label(corpus, learned.corpus, corpus_source))
+            write_outputs(npz, rrd, result.trajectory, r, layout, evaluation=result.evaluation, info=info)
+    traj, m, ev = result.trajectory, result.motion, result.evaluation
+    summary = _run_summary(path.stem, traj, m, result.solve_seconds, rrd, npz, ev)
+    summary.add_row("criteria learned from", _corpus_label(corpus, result.learned.corpus, corpus_source))
     console.print(summary)
-    if tried:
-        scores = ", ".join(f"{c.name} {c.m_hl_f:.3f}" for c in tried)
+    if result.tried:
+        scores = ", ".join(f"{c.name} {c.m_hl_f:.3f}" for c in result.tried)
         console.print(f"placement optimize (m_hl,f of a short qp run): {scores}")
     console.print(
-        f"human likeness m_hl = {ev.m_hl:.3f}, functional m_f = {ev.m_f:.3f} ({scenario}), "
+        f"human likeness m_hl = {ev.m_hl:.3f}, functional m_f = {ev.m_f:.3f} ({result.scenario}), "
         f"m_hl,f = {ev.m_hl_f:.3f}, weights and x0: {ev.metric.source}",
         soft_wrap=True,
     )
-    _warn([*notes, *_run_warnings(traj, m, ev, rate)])  # at the end, where they are seen
+    _warn(result.warnings)  # at the end, where they are seen
     # the same scores again: everything that changed them here is passed on
-    details = ["hlik", "evaluate", str(npz), "--scenario", scenario]
+    details = ["hlik", "evaluate", str(npz), "--scenario", result.scenario]
     details += ["--corpus", str(corpus)] if corpus is not None else []
     details += ["--metric", str(metric)] if metric is not None else []
     # Commands to copy: each on its own line, never wrapped inside a path.
@@ -381,74 +343,6 @@ def _corpus_label(corpus: Path | None, files: Sequence[str], source: str = "") -
         return f"the bundled demo ({', '.join(files)})"
     count = f"{len(files)} file" + ("s" if len(files) != 1 else "")
     return f"{corpus} ({count}" + (f", from {source})" if source else ")")
-
-
-OFF_SHARE = 0.10  # a hand further than LAG from its target in more frames than this is warned about
-LOW_RATE = 50.0  # Hz below which --rate 0 is warned about: the criteria's constants assume 100 Hz
-TURNED = 30.0  # degrees: a hand turned this far from its target's orientation is warned about
-
-
-def _run_warnings(traj: Trajectory, motion: HumanMotion, ev: Evaluation, rate: float) -> list[str]:
-    """One line for each thing the user should know about the result of ``hlik run``."""
-    import numpy as np
-
-    from hlik.criteria.functional import position_error, relative_errors, rotation_angle
-
-    n = traj.n_frames
-    share = lambda k: f"{k} of {n} frames ({100 * k / n:.0f} %)"  # noqa: E731
-    notes = []
-    # jm maps the joint angles: by design it neither tracks the hands nor keeps the speed and
-    # acceleration limits (the summary says how far off it is); warning on every jm run would bury
-    # the real warnings. Torques, stops and the floor are warned about for every solver.
-    tracking = traj.solver != "jm"
-
-    def often(err: np.ndarray, limit: float) -> int:
-        """Frames of ``err`` (T,) above ``limit``, if a tracking solver has more than OFF_SHARE; else 0."""
-        k = int(np.count_nonzero(err > limit))
-        return k if tracking and k > OFF_SHARE * n else 0
-
-    if ev.scenario == "relative":  # the hands follow their relative pose, not the human's hands
-        gap = relative_errors(traj.tcp_pos, traj.tcp_rot, traj.targets.pos, traj.targets.rot)[0]
-        if off := often(gap, LAG):
-            notes.append(
-                f"the hands' relative position is more than {100 * LAG:.0f} cm off the human's in "
-                f"{share(off)}, up to {100 * gap.max():.1f} cm (fPOS_off)"
-            )
-    else:
-        fpos = position_error(traj.tcp_pos, traj.targets.pos)  # (T, 2) m
-        fori = np.degrees(rotation_angle(traj.tcp_rot, traj.targets.rot))  # (T, 2)
-        for i, side in enumerate(("left", "right")):
-            if off := often(fpos[:, i], LAG):
-                notes.append(
-                    f"{side} hand more than {100 * LAG:.0f} cm off its target in {share(off)}, up to "
-                    f"{100 * fpos[:, i].max():.1f} cm (out of reach, or too fast for the speed limits)"
-                )
-        for i, side in enumerate(("left", "right")):
-            if off := often(fori[:, i], TURNED):
-                notes.append(
-                    f"{side} hand turned more than {TURNED:.0f}° from its target in {share(off)}, up to "
-                    f"{fori[:, i].max():.0f}° (out of reach, or traded for the criteria)"
-                )
-    if rate == 0 and motion.rate < LOW_RATE:
-        notes.append(
-            f"--rate 0 keeps the motion's {motion.rate:g} Hz; the criteria's constants assume 100 Hz "
-            "(the paper's): consider --rate 100"
-        )
-    d = traj.diagnostics
-    if d.n_failed:
-        notes.append(f"the solver failed in {share(d.n_failed)}")
-    if d.n_unconverged:
-        notes.append(f"the solver stopped at its iteration cap in {share(d.n_unconverged)}")
-    touching = int(np.count_nonzero(ev.collisions))
-    if touching:
-        notes.append(f"the robot is in self-collision in {share(touching)}")
-    if tracking and ev.max_speed_ratio > 1.0 + 1e-6:
-        notes.append(f"joint speeds exceed their limits, at most {ev.max_speed_ratio:.2f} x the limit")
-    return notes + _controller_warnings(ev.controller, tracking, share)
-
-
-LAG = 0.05  # m: a hand this far off its target is reported as lagging
-STOP_SHARE = 0.05  # a joint on a stop in more frames than this is warned about
 
 
 def _controller_line(c) -> str:
@@ -503,75 +397,6 @@ def _posture_line(p) -> str:
         f"{' / '.join(f'{v:.0f}°' for v in j['swivel_difference_deg'])}; arm joint path "
         f"{j['path_ratio']:.2f} of the subject's"
     )
-
-
-def _controller_warnings(c, tracking: bool, share) -> list[str]:
-    """One ``warning:`` line for each limit :class:`ControllerChecks` ``c`` finds exceeded."""
-    from hlik.executable import BELOW_FLOOR
-
-    j, notes = c.to_json(), []
-    if tracking and c.frames_over_acceleration:
-        notes.append(
-            f"joint accelerations exceed their limits in {share(c.frames_over_acceleration)}, at most "
-            f"{j['max_acceleration_ratio']:.2f} x the limit ({j['acceleration_joint']})"
-        )
-    if tracking and c.frames_over_jerk:
-        notes.append(
-            f"joint jerks exceed their limits in {share(c.frames_over_jerk)}, at most "
-            f"{j['max_jerk_ratio']:.2f} x the limit ({j['jerk_joint']})"
-        )
-    if c.frames_over_effort:
-        notes.append(
-            f"joint torques exceed their effort limits in {share(c.frames_over_effort)}, at most "
-            f"{j['max_torque_ratio']:.2f} x the limit ({j['torque_joint']}, {j['max_torque']:.0f} N m)"
-        )
-    if c.share_at_stop > STOP_SHARE:
-        notes.append(
-            f"a joint is within 0.5° of a stop in {share(int(j['frames_at_stop']))} "
-            "(a controller keeps a margin)"
-        )
-    if c.lowest_point < -BELOW_FLOOR:
-        notes.append(f"the robot reaches {100 * -c.lowest_point:.1f} cm below the floor")
-    return notes
-
-
-def _lag_spans(fpos: np.ndarray, times: np.ndarray, shown: int = 3) -> str:
-    """The time spans where either hand is more than :data:`LAG` off its target, e.g.
-    ``"1.50-3.52 s (left), 4.00-4.20 s (both); 203 frames"``; empty if none."""
-    import numpy as np
-
-    off = fpos > LAG  # (T, 2)
-    any_off = off.any(axis=1)
-    if not any_off.any():
-        return ""
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], any_off.astype(int), [0]])))
-    spans = []
-    for start, stop in zip(edges[::2], edges[1::2]):
-        left, right = bool(off[start:stop, 0].any()), bool(off[start:stop, 1].any())
-        which = "both" if left and right else ("left" if left else "right")
-        spans.append(f"{times[start]:.2f}-{times[stop - 1]:.2f} s ({which})")
-    more = f", {len(spans) - shown} more" if len(spans) > shown else ""
-    return f"{', '.join(spans[:shown])}{more}; {int(any_off.sum())} frames"
-
-
-def _check_rate(rate: float) -> None:
-    low, high = RATE_RANGE
-    if not (rate == 0 or low <= rate <= high):  # NaN fails both
-        raise HlikError(
-            f"--rate must be positive, {low:g} to {high:g} Hz (or 0 to keep the motion's rate), got {rate:g}"
-        )
-
-
-def _check_placement(spec: str | None) -> None:
-    """``X,Y,YAW[,Z]`` must be finite numbers (a NaN base pose scores NaN without a word)."""
-    if spec is None or "," not in spec:
-        return
-    try:
-        values = [float(v) for v in spec.split(",")]
-    except ValueError:
-        return  # placement_from_spec says what it expects
-    if len(values) in (3, 4) and not all(math.isfinite(v) for v in values):
-        raise HlikError(f"--placement {spec}: X, Y, YAW (and Z) must be finite numbers (m, m, deg, m)")
 
 
 def _file_stem(*parts: str) -> str:
@@ -659,10 +484,10 @@ def _writing(*paths: Path) -> Iterator[None]:
 def _run_summary(title: str, traj, motion, solve_time: float, rrd: Path, npz: Path, ev) -> Table:
     import numpy as np
 
-    from hlik.criteria.functional import position_error, relative_errors, rotation_angle
+    from hlik.criteria.functional import relative_errors
+    from hlik.findings import LAG, lag_spans
 
-    fpos = position_error(traj.tcp_pos, traj.targets.pos)
-    fori = rotation_angle(traj.tcp_rot, traj.targets.rot)
+    fpos, fori = ev.fpos, ev.fori
     table = Table(show_header=False, box=None, title=f"{title} -> {Path(traj.robot).stem} ({traj.solver})")
     table.add_column(no_wrap=True)
     table.add_column(overflow="fold")
@@ -695,7 +520,7 @@ def _run_summary(title: str, traj, motion, solve_time: float, rrd: Path, npz: Pa
     table.add_row("body", f"{int(np.count_nonzero(ev.collisions))} frames in self-collision; {speeds}")
     table.add_row("controller", _controller_line(ev.controller))
     table.add_row("posture", _posture_line(ev.posture))
-    lag = _lag_spans(fpos, traj.times) if ev.scenario == "pose" else ""  # relative: no hand targets
+    lag = lag_spans(fpos, traj.times) if ev.scenario == "pose" else ""  # relative: no hand targets
     if lag:
         reason = (
             "jm maps the joints and does not track the hands"

@@ -14,6 +14,7 @@ from scipy.ndimage import uniform_filter1d
 from hlik.criteria import registry, unified
 from hlik.criteria.angles import joint_difference
 from hlik.criteria.base import Sample
+from hlik.criteria.functional import position_error, rotation_angle
 from hlik.criteria.learned import Learned
 from hlik.criteria.smoothness import history
 from hlik.errors import SettingsError
@@ -44,6 +45,8 @@ class Evaluation:
         posture: Trunk lean, elbows and hands against the shoulders, swivel and joint path,
             the robot's beside the subject's (:mod:`hlik.posture`; not part of m_hl).
         metric: The weights and x0 the scores used (Table III unless another was given).
+        fpos: (T, 2) each hand's TCP distance from its target, m (left, right).
+        fori: (T, 2) each hand's TCP rotation from its target's orientation, rad.
     """
 
     h: MappingProxyType
@@ -57,6 +60,12 @@ class Evaluation:
     metric: unified.Metric
     controller: ControllerChecks
     posture: Posture
+    fpos: np.ndarray
+    fori: np.ndarray
+
+    @property
+    def n_frames(self) -> int:
+        return len(self.collisions)
 
     @property
     def max_speed_ratio(self) -> float:
@@ -77,12 +86,26 @@ class Evaluation:
             raise ValueError(f"window must be a positive odd number of frames, got {window}")
         x0 = unified.midpoints(self.scenario, self.metric)
         out = {k: unified.logistic(self.h[k], x0[k]) for k in self.m}
-        n = len(self.collisions)
+        n = self.n_frames
         size = min(window, n if n % 2 else n - 1)  # odd: a symmetric filter
         for k in out:
             if size > 1 and registry.criterion_class(k).motion:
                 out[k] = uniform_filter1d(out[k], size, mode="reflect")
         return out
+
+    def unified_curves(self, window: int = 1) -> tuple[np.ndarray, np.ndarray]:
+        """(T,) m_hl(t) = sum_i w_i f_i(t) and (T,) m_f(t), the mean of the scenario's functional
+        f_i(t).
+
+        A per-frame m_hl is not defined by the paper; these are the weighted sums Eq. 2 applies to
+        the per-frame scores f_i(t) (:meth:`curves`, the criteria of motion over ``window``
+        frames), so that their means over the frames are exactly m_hl and m_f (the m_i are such
+        means).
+        """
+        f = self.curves(window)
+        m_hl = sum(self.metric.weights[k] * f[k] for k in registry.human_likeness())
+        m_f = np.mean([f[k] for k in unified.FUNCTIONAL_X0[self.scenario]], axis=0)
+        return np.asarray(m_hl, dtype=float), np.asarray(m_f, dtype=float)
 
     def to_json(self) -> dict:
         """The JSON object of ``hlik evaluate --json``."""
@@ -162,6 +185,8 @@ def evaluate(
         metric=metric,
         controller=controller_checks(traj, robot),
         posture=posture(traj, robot),
+        fpos=position_error(traj.tcp_pos, traj.targets.pos),
+        fori=rotation_angle(traj.tcp_rot, traj.targets.rot),
     )
 
 

@@ -46,7 +46,6 @@ import rerun.blueprint as rrb
 from scipy.spatial.transform import Rotation
 
 from hlik.atomic import atomic_path
-from hlik.criteria import registry, unified
 from hlik.criteria.functional import position_error, relative_errors, rotation_angle
 from hlik.fk import body_poses
 from hlik.human.fit import fit_error, keypoint_markers
@@ -489,7 +488,7 @@ def _log(
         entity = _curve(rec, f"/plots/metrics/{_entity(name)}", f"{name} (score)", color)
         curves[entity] = np.asarray(metrics[name], dtype=float)
     if evaluation is not None:
-        m_hl, m_f = unified_curves(evaluation, score_window(traj))
+        m_hl, m_f = evaluation.unified_curves(score_window(traj))
         curves[_curve(rec, "/plots/unified/m_hl", "m_hl(t) (score)", PALETTE[0])] = m_hl
         curves[_curve(rec, "/plots/unified/m_f", "m_f(t) (score)", PALETTE[1])] = m_f
         for who, body, colors in (
@@ -749,21 +748,6 @@ def score_window(trajectory: Trajectory) -> int:
     """:data:`SCORE_WINDOW` in frames of ``trajectory`` (odd, at least 1)."""
     dt = float(np.median(np.diff(trajectory.times))) if trajectory.n_frames > 1 else SCORE_WINDOW
     return 2 * int(round(SCORE_WINDOW / dt / 2.0)) + 1
-
-
-def unified_curves(evaluation: Evaluation, window: int = 1) -> tuple[np.ndarray, np.ndarray]:
-    """(T,) m_hl(t) = sum_i w_i f_i(t) and (T,) m_f(t), the mean of the scenario's functional f_i(t).
-
-    A per-frame m_hl is not defined by the paper; these are the weighted sums Eq. 2 applies to the
-    per-frame scores f_i(t) = f_x0(h_i(t)) (the criteria of motion over ``window`` frames,
-    :meth:`~hlik.metrics.Evaluation.curves`), so that their means over the frames are exactly m_hl
-    and m_f (the m_i are such means).
-    """
-    f = evaluation.curves(window)
-    weights = evaluation.metric.weights
-    m_hl = sum(weights[k] * f[k] for k in registry.human_likeness())
-    m_f = np.mean([f[k] for k in unified.FUNCTIONAL_X0[evaluation.scenario]], axis=0)
-    return np.asarray(m_hl, dtype=float), np.asarray(m_f, dtype=float)
 
 
 def summary(traj: Trajectory, robot: Robot, evaluation: Evaluation | None, info: Mapping[str, str]) -> str:

@@ -12,7 +12,6 @@ rerun skips finished cells and a crash loses one cell.
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -24,14 +23,10 @@ from hlik import __version__
 from hlik.atomic import atomic_path
 from hlik.criteria.functional import position_error
 from hlik.criteria.learned import Learned
-from hlik.human.load import load_motion
 from hlik.human.motion import HumanMotion
-from hlik.metrics import evaluate
-from hlik.problem.placement import Placement, placement_from_spec
-from hlik.retarget import retarget
+from hlik.pipeline import RunSpec, read_motion, run
+from hlik.problem.placement import Placement
 from hlik.robot.model import Robot
-from hlik.solvers import get_solver
-from hlik.solvers.stack_file import load_stack
 from hlik.study.approaches import Approach
 
 SKIP = 1.0  # s cut from the start of a take (the subject's T-pose and first reach) when cropping
@@ -59,13 +54,30 @@ class Cell:
         return f"{self.take.stem}__{robot}__{self.approach.key}__{span}s{rate}.parquet"
 
 
-def cell_motion(take: Path, seconds: float | None, rate: float) -> HumanMotion:
+def cell_spec(cell: Cell) -> RunSpec:
+    """The :class:`~hlik.pipeline.RunSpec` of a cell."""
+    a = cell.approach
+    return RunSpec(
+        motion=cell.take,
+        robot=cell.robot,
+        solver=a.solver,
+        stack=a.stack,
+        criteria=tuple(a.criteria),
+        scenario=a.scenario,
+        rate=cell.rate,
+        span=_span(cell.seconds),
+        corpus=cell.corpus,
+    )
+
+
+def cell_motion(take: Path, seconds: float | None, rate: float, robot: Robot) -> HumanMotion:
     """A cell's motion: ``take`` resampled to ``rate`` Hz, ``seconds`` of it after the first second
-    (``None``: all of it)."""
-    motion = load_motion(take, rate=rate)
-    if seconds is not None:
-        motion = motion.crop(min(SKIP, motion.duration / 2), min(SKIP + seconds, motion.duration))
-    return motion
+    (``None``: all of it), the subject scaled by the robot's rule."""
+    return read_motion(RunSpec(motion=take, rate=rate, span=_span(seconds)), robot)
+
+
+def _span(seconds: float | None) -> tuple[float, float] | None:
+    return None if seconds is None else (SKIP, SKIP + seconds)
 
 
 def run_cell(
@@ -75,21 +87,15 @@ def run_cell(
     motion: HumanMotion | None = None,
     placement: Placement | None = None,
 ) -> pa.Table:
-    """Retarget and evaluate one cell; its per-frame table (see the module docstring).
+    """Retarget and evaluate one cell (:func:`hlik.pipeline.run`); its per-frame table (see the
+    module docstring).
 
     ``motion`` and ``placement``: the cell's (:func:`cell_motion`; the robot's own placement rule),
     when the caller already has them (every approach of a take and robot shares both).
     """
     a = cell.approach
-    motion = motion if motion is not None else cell_motion(cell.take, cell.seconds, cell.rate)
-    stack = load_stack(a.stack).with_criteria(a.criteria)
-    settings = None if a.solver == "jm" else stack.settings(a.solver)
-    if placement is None:
-        placement = placement_from_spec(robot.placement, robot, motion)
-    start = time.process_time()
-    traj = retarget(motion, robot, get_solver(a.solver, settings, learned), placement)
-    cpu = time.process_time() - start
-    ev = evaluate(traj, robot, learned, scenario=a.scenario)
+    result = run(cell_spec(cell), robot=robot, motion=motion, learned=learned, placement=placement)
+    traj, ev, cpu = result.trajectory, result.evaluation, result.solve_cpu
     n = traj.n_frames
     fpos = position_error(traj.tcp_pos, traj.targets.pos)
     d = traj.diagnostics

@@ -18,7 +18,6 @@ from hlik.criteria.learned import learn
 from hlik.criteria.unified import Metric
 from hlik.errors import HlikError
 from hlik.problem.placement import placement_from_spec
-from hlik.problem.scale import scale_subject
 from hlik.robot.model import load_robot
 from hlik.robot.reachability import reachability_map
 from hlik.study.analysis import Correlation, Ranking, correlate, correlation_frames, derive_metric, rank
@@ -50,7 +49,7 @@ def _scene(take: Path, seconds: float | None, rate: float, robot_name: str, corp
     # per process: the motion and the placement every approach of a take and robot shares (the
     # placement by reachability costs 1.3-1.5 s, more than most cells); plan() groups the cells so
     robot = _robot(robot_name, corpus)[0]
-    motion = scale_subject(cell_motion(take, seconds, rate), robot)
+    motion = cell_motion(take, seconds, rate, robot)
     return motion, placement_from_spec(robot.placement, robot, motion)
 
 

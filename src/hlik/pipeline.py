@@ -1,0 +1,281 @@
+"""One retargeting run, from a motion file to its scores: the pipeline that ``hlik run``, the
+study's cells and ``bench/quality.py`` share.
+
+    read (resample, crop) -> scale -> learn -> place -> solve -> evaluate
+
+:class:`RunSpec` says what to run and :func:`run` runs it into a :class:`RunResult`. The spec is
+checked whole (:meth:`RunSpec.check`) before anything is read, so a bad setting costs no solve.
+A caller running several specs on one take and robot (the study's approaches) hands the shared
+stage outputs to :func:`run` instead of recomputing them.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from types import MappingProxyType
+
+from hlik.criteria.learned import Learned, learn
+from hlik.criteria.unified import FUNCTIONAL_X0, load_metric
+from hlik.errors import HlikError
+from hlik.findings import run_warnings
+from hlik.human.load import load_motion
+from hlik.human.motion import RATE_RANGE, HumanMotion
+from hlik.metrics import Evaluation, evaluate
+from hlik.paths import demo_motion_path
+from hlik.placement_search import Candidate, optimize_placement
+from hlik.problem.placement import Placement, placement_from_spec, placement_notes
+from hlik.problem.scale import scale_subject
+from hlik.retarget import retarget
+from hlik.robot.model import Robot, load_robot
+from hlik.robot.reachability import reachability_map
+from hlik.solvers import SOLVER_NAMES, get_solver
+from hlik.solvers.stack_file import Stack, load_stack
+from hlik.trajectory import Trajectory
+
+# (stage, done, total): what the run is doing, and how far (None, None: no count)
+Progress = Callable[[str, int | None, int | None], None]
+GRADIENTS = ("analytic", "fd")
+
+
+@dataclass(frozen=True)
+class RunSpec:
+    """What to retarget, to which robot, how.
+
+    Attributes:
+        motion: Motion file (any format :func:`hlik.human.load.load_motion` reads); None: the
+            bundled demo.
+        robot: Robot name (``hlik robots``) or path of a robot ``.toml``.
+        solver: ``jm``, ``jv``, ``qp`` or ``slsqp``.
+        stack: Task-stack ``.toml`` or a bundled stack's name; its weights and criteria.
+        criteria: Criteria replacing the stack's (None: the stack's).
+        scenario: ``pose`` or ``relative`` (None: the stack's).
+        placement: Placement rule or ``X,Y,YAW[,Z]`` (None: the robot's), ``optimize`` included.
+        scale: Subject scale, a factor or ``auto`` (None: the robot's ``subject_scale``).
+        rate: Resample the motion to this rate, Hz; 0 keeps the recorded rate.
+        span: ``(start, stop)`` s after the first frame to keep (start at most half the take,
+            stop at most its end); None: all of it.
+        corpus: Corpus folder the criteria are learned from (None: ``learn``'s default).
+        metric: Metric file with the unified metric's weights and x0 (None: Table III).
+        gradients: SLSQP's gradients, ``analytic`` or ``fd`` (finite differences, as the paper).
+        settings: Solver settings fields to override, name -> value (``bench --set``).
+    """
+
+    motion: Path | None = None
+    robot: str | Path = "armar6"
+    solver: str = "jm"
+    stack: str | Path = "ee_pose"
+    criteria: tuple[str, ...] | None = None
+    scenario: str | None = None
+    placement: str | None = None
+    scale: float | str | None = None
+    rate: float = 100.0
+    span: tuple[float, float] | None = None
+    corpus: Path | None = None
+    metric: Path | None = None
+    gradients: str = "analytic"
+    settings: Mapping[str, object] = field(default_factory=lambda: MappingProxyType({}))
+
+    @property
+    def motion_path(self) -> Path:
+        return Path(self.motion) if self.motion is not None else demo_motion_path()
+
+    def task_stack(self) -> Stack:
+        """The stack with this spec's criteria.
+
+        Raises:
+            HlikError: the stack file is missing or malformed, or names an unknown criterion.
+        """
+        stack = load_stack(self.stack)
+        return stack.with_criteria(list(self.criteria)) if self.criteria is not None else stack
+
+    def check(self) -> Stack:
+        """Every setting that can be checked without reading the motion; returns the task stack.
+
+        Raises:
+            HlikError: one line naming the setting and what it accepts.
+        """
+        if self.solver not in SOLVER_NAMES:
+            raise HlikError(f"unknown solver {self.solver!r}; choose one of: {', '.join(SOLVER_NAMES)}")
+        stack = self.task_stack()
+        if stack.criteria and self.solver == "jm":
+            raise HlikError("jm maps joints and cannot add criteria; choose --solver jv, qp or slsqp")
+        if self.gradients not in GRADIENTS:
+            raise HlikError(f"unknown gradients {self.gradients!r}; choose analytic or fd")
+        if self.gradients == "fd" and self.solver != "slsqp":
+            raise HlikError("--gradients fd is for --solver slsqp")
+        scenario = self.scenario or stack.scenario
+        if scenario not in FUNCTIONAL_X0:
+            raise HlikError(f"unknown scenario {scenario!r}; choose one of: {', '.join(FUNCTIONAL_X0)}")
+        low, high = RATE_RANGE
+        if not (self.rate == 0 or low <= self.rate <= high):  # NaN fails both
+            raise HlikError(
+                f"--rate must be positive, {low:g} to {high:g} Hz (or 0 to keep the motion's rate), "
+                f"got {self.rate:g}"
+            )
+        _check_base_pose(self.placement)
+        if self.metric is not None:
+            load_metric(self.metric)  # read again by run(): a bad file fails before the solve
+        return stack
+
+
+@dataclass(frozen=True, eq=False)
+class RunResult:
+    """A finished run.
+
+    Attributes:
+        spec: What was run.
+        robot: The robot.
+        motion: The motion as retargeted (resampled, cropped, the subject scaled).
+        learned: The learned pieces the criteria and scores used.
+        trajectory: The retargeted trajectory.
+        evaluation: Its costs, scores, controller checks and posture.
+        scenario: The functional scenario scored (the spec's or the stack's).
+        tried: The placements ``optimize`` compared (empty for another rule).
+        notes: One-line warnings from reading, learning and placing (each names its source);
+            :attr:`warnings` adds those about the result.
+        solve_seconds: Wall time of the solve, s.
+        solve_cpu: CPU time of the solve, s.
+    """
+
+    spec: RunSpec
+    robot: Robot
+    motion: HumanMotion
+    learned: Learned
+    trajectory: Trajectory
+    evaluation: Evaluation
+    scenario: str
+    tried: tuple[Candidate, ...]
+    notes: tuple[str, ...]
+    solve_seconds: float
+    solve_cpu: float
+
+    @property
+    def warnings(self) -> list[str]:
+        """The notes, then what the result itself shows (:func:`hlik.findings.run_warnings`)."""
+        return [*self.notes, *run_warnings(self.trajectory, self.motion, self.evaluation, self.spec.rate)]
+
+
+def read_motion(spec: RunSpec, robot: Robot) -> HumanMotion:
+    """The spec's motion: read, resampled to ``spec.rate``, cropped to ``spec.span``, the subject
+    scaled by ``spec.scale`` (the robot's rule if None)."""
+    motion = load_motion(spec.motion_path, rate=spec.rate or None)
+    if spec.span is not None:
+        start, stop = spec.span
+        motion = motion.crop(min(start, motion.duration / 2), min(stop, motion.duration))
+    return scale_subject(motion, robot, spec.scale)
+
+
+def place(
+    spec: RunSpec,
+    robot: Robot,
+    motion: HumanMotion,
+    learned: Learned,
+    scenario: str,
+    progress: Progress | None = None,
+) -> tuple[Placement, tuple[Candidate, ...], list[str]]:
+    """Where the robot stands for the spec's placement rule, the candidates ``optimize`` tried and
+    the notes (a reachability map's, a base off its floor)."""
+    rule = spec.placement or robot.placement
+    notes: list[str] = []
+    if rule in ("reach", "optimize"):  # sampled or read once; placement reads the cache
+        notes += reachability_map(
+            robot, progress=_counter(progress, f"reachability map of {robot.title}")
+        ).notes
+    _say(progress, f"placing {robot.title} ({rule})")
+    tried: tuple[Candidate, ...] = ()
+    if rule == "optimize":
+        # the spec's own settings where it is a QP run; the stack's QP weights otherwise
+        qp = spec if spec.solver == "qp" else replace(spec, solver="qp", gradients="analytic", settings={})
+        fast = get_solver("qp", solver_settings(qp, spec.task_stack()), learned)
+        where, candidates = optimize_placement(motion, robot, fast, learned, scenario)
+        tried = tuple(candidates)
+    else:
+        where = placement_from_spec(rule, robot, motion)
+    return where, tried, notes + placement_notes(robot, where)
+
+
+def solver_settings(spec: RunSpec, stack: Stack) -> object | None:
+    """The solver's settings: the stack's, with the spec's gradients and overrides (None for jm)."""
+    if spec.solver == "jm":
+        return None
+    settings = stack.settings(spec.solver)
+    if spec.solver == "slsqp":
+        settings = replace(settings, gradients=spec.gradients)
+    return replace(settings, **spec.settings) if spec.settings else settings
+
+
+def run(
+    spec: RunSpec,
+    progress: Progress | None = None,
+    *,
+    robot: Robot | None = None,
+    motion: HumanMotion | None = None,
+    learned: Learned | None = None,
+    placement: Placement | None = None,
+) -> RunResult:
+    """Run ``spec``: read, scale, learn, place, solve, evaluate.
+
+    ``robot``, ``motion`` (already read and scaled: :func:`read_motion`), ``learned`` and
+    ``placement``: stage outputs a caller shares between runs, used instead of computing them.
+    ``progress(stage, done, total)`` is told each stage, and each solved frame.
+
+    Raises:
+        HlikError: a bad setting (:meth:`RunSpec.check`), or an input that cannot be read, placed
+            or retargeted (one line naming the file and the part).
+    """
+    stack = spec.check()
+    scenario = spec.scenario or stack.scenario
+    metric = load_metric(spec.metric) if spec.metric is not None else None
+    robot = robot or load_robot(str(spec.robot))
+    if motion is None:
+        _say(progress, f"reading {spec.motion_path.name}")
+        motion = read_motion(spec, robot)
+    if learned is None:
+        learned = learn(robot, spec.corpus, progress=_counter(progress, f"learning {robot.title}'s criteria"))
+    notes = [*motion.notes, *learned.notes]
+    tried: tuple[Candidate, ...] = ()
+    if placement is None:
+        placement, tried, placed = place(spec, robot, motion, learned, scenario, progress)
+        notes += placed
+    settings = solver_settings(spec, stack)
+    stage = f"retargeting to {robot.title} ({spec.solver})"
+    step = (lambda k: progress(stage, k + 1, motion.n_frames)) if progress else None
+    _say(progress, stage, 0, motion.n_frames)
+    wall, cpu = time.perf_counter(), time.process_time()
+    traj = retarget(motion, robot, get_solver(spec.solver, settings, learned, step), placement)
+    wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
+    _say(progress, "evaluating the criteria")
+    ev = evaluate(traj, robot, learned, scenario=scenario, metric=metric)
+    return RunResult(spec, robot, motion, learned, traj, ev, scenario, tried, tuple(notes), wall, cpu)
+
+
+def _say(progress: Progress | None, stage: str, done: int | None = None, total: int | None = None) -> None:
+    if progress is not None:
+        progress(stage, done, total)
+
+
+def _counter(progress: Progress | None, stage: str) -> Callable[[int, int], None] | None:
+    """A ``(k, n)`` callback reporting ``stage``'s count to ``progress``."""
+    if progress is None:
+        return None
+    progress(stage, None, None)
+    return lambda k, n: progress(stage, k, n)
+
+
+def _check_base_pose(spec: str | None) -> None:
+    """``X,Y,YAW[,Z]`` must be finite numbers (a NaN base pose scores NaN without a word)."""
+    if spec is None or "," not in spec:
+        return
+    try:
+        values = [float(v) for v in spec.split(",")]
+    except ValueError:
+        return  # placement_from_spec says what it expects
+    if len(values) in (3, 4) and not all(math.isfinite(v) for v in values):
+        raise HlikError(f"--placement {spec}: X, Y, YAW (and Z) must be finite numbers (m, m, deg, m)")
+
+
+__all__ = ["Progress", "RunResult", "RunSpec", "place", "read_motion", "run", "solver_settings"]
