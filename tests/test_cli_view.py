@@ -21,7 +21,8 @@ from hypothesis import strategies as st
 from typer.testing import CliRunner
 
 from conftest import data_file, kit_takes
-from hlik.cli import _run_tag, app
+from hlik.cli import app
+from hlik.cli.run import _run_tag
 from hlik.criteria.functional import position_error
 from hlik.errors import SettingsError
 from hlik.findings import run_warnings
@@ -552,11 +553,11 @@ def test_each_exceeded_controller_limit_gets_one_warning(solver):
 
 def test_the_controller_row_says_how_the_motion_ends():
     """A trajectory that ends moving needs time to stop beyond its last frame (|v| / a_max)."""
-    from hlik.cli import _controller_line
+    from hlik.cli.summary import controller_line
 
     moving = _checks(10, end_speed=np.array([0.5]), acceleration_limit=np.array([2.0]))
     assert moving.stop_time == pytest.approx(0.25)
-    assert "ends moving at up to 0.50 rad/s (0.25 s to stop" in _controller_line(moving)
-    assert _checks(10).stop_time == 0.0 and "ends at rest" in _controller_line(_checks(10))
+    assert "ends moving at up to 0.50 rad/s (0.25 s to stop" in controller_line(moving)
+    assert _checks(10).stop_time == 0.0 and "ends at rest" in controller_line(_checks(10))
     backward = _checks(10, end_speed=np.array([-0.5]), acceleration_limit=np.array([2.0]))
     assert backward.stop_time == pytest.approx(0.25)  # a joint moving the other way stops as long

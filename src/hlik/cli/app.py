@@ -1,0 +1,164 @@
+"""The command line's application, console, shared options and error handling: bad input ends
+in one line on stderr and exit code 2."""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+from rich.console import Console
+from rich.text import Text
+from typer.core import TyperGroup
+
+from hlik.atomic import raising_on_sigterm
+from hlik.errors import HlikError
+
+FLAG = ""  # metavar of an on/off option: typer would show it as `--json <bool>`, taking a value
+
+
+def warn(notes) -> None:
+    """``warning: <note>`` on one line of stderr for each note (text, never markup)."""
+    err = Console(stderr=True, soft_wrap=True, highlight=False)
+    for note in notes:
+        err.print(Text.assemble(("warning:", "yellow"), " ", " ".join(str(note).split())))
+
+
+def print_error(message: str) -> None:
+    """``error: <message>`` on one line of stderr; the message is text, never markup ("[qp]")."""
+    text = Text.assemble(("error:", "red"), " ", " ".join(message.split()))
+    Console(stderr=True, soft_wrap=True, highlight=False).print(text)
+
+
+INTERRUPTED = 130  # exit code of a command ended by Ctrl-C (128 + SIGINT)
+
+
+class _OneLineErrors(TyperGroup):
+    """Usage errors (unknown option, bad value) in one line and exit code 2, like hlik's own errors,
+    instead of click's box; SIGTERM ends a command through ``finally`` blocks (temporaries removed)."""
+
+    def main(
+        self,
+        args: Sequence[str] | None = None,
+        prog_name: str | None = None,
+        complete_var: str | None = None,
+        standalone_mode: bool = True,
+        windows_expand_args: bool = True,
+        **extra: Any,
+    ) -> Any:
+        try:
+            with raising_on_sigterm():
+                result = super().main(
+                    args, prog_name, complete_var, False, windows_expand_args=windows_expand_args, **extra
+                )
+        except typer.TyperException as e:  # click's usage errors, as typer vendors them
+            ctx = getattr(e, "ctx", None)
+            if type(e).__name__ != "NoArgsIsHelpError":  # `hlik` alone: the help is printed
+                see = f" (see: {ctx.command_path} --help)" if ctx is not None else ""
+                print_error(f"{e.format_message()}{see}")
+            result = 2
+        except typer.Abort:  # end of input at a prompt
+            print_error("aborted")
+            result = 1
+        if result == INTERRUPTED:  # typer turns Ctrl-C into this exit code, silently
+            print_error("interrupted; nothing written")
+        if not standalone_mode:
+            return result
+        sys.exit(result if isinstance(result, int) else 0)
+
+
+app = typer.Typer(
+    cls=_OneLineErrors,
+    help="hlik: human-like bimanual motion retargeting (MMM human -> ARMAR-III, ARMAR-6, 2-Panda).",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+)
+# Motion files a folder of takes may hold: MMM, BVH, keypoint descriptions (hlik.human.load_motion).
+MOTION_FILES = ("*.xml", "*.bvh", "*.toml")
+# Output is text, not markup: file, motion and object names print as written ("[red]take.xml").
+console = Console(markup=False)
+
+MotionArg = Annotated[
+    Path | None,
+    typer.Argument(
+        help="Motion: MMM .xml, .bvh or a keypoint .toml (default: the bundled demo).", show_default=False
+    ),
+]
+
+CorpusOpt = Annotated[
+    Path | None,
+    typer.Option(
+        help="Folder of MMM motions to learn synergies and the swivel regressor from (default: "
+        '$HLIK_CORPUS, else corpus = "DIR" in ./hlik.toml, else the bundled demo).',
+        show_default=False,
+    ),
+]
+ScenarioOpt = Annotated[
+    str, typer.Option(help="Functional score: pose (hand poses) or relative (relative pose of the hands).")
+]
+MetricOpt = Annotated[
+    Path | None,
+    typer.Option(
+        help="Weights and x0 of m_hl from a TOML file (e.g. study/metric.toml of `hlik study`); "
+        "default: the paper's Table III.",
+        show_default=False,
+    ),
+]
+
+
+def fail(err: HlikError) -> None:
+    print_error(str(err))
+    raise typer.Exit(2)
+
+
+@contextmanager
+def one_line() -> Iterator[None]:
+    """Bad input and failed reads or writes end the command with one line and exit code 2."""
+    try:
+        yield
+    except HlikError as e:
+        fail(e)
+    except OSError as e:  # what the readers do not name themselves (permission, full disk)
+        where = f"{e.filename}: " if e.filename else ""
+        fail(HlikError(f"{where}{e.strerror or e}"))
+
+
+def progress_bar(spinner: bool = False):
+    """A transient bar on stderr (none when stderr is no terminal): description, bar, k/n, time."""
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        SpinnerColumn,
+        TextColumn,
+        TimeElapsedColumn,
+    )
+
+    columns = (TextColumn("{task.description}", markup=False), BarColumn(), MofNCompleteColumn())
+    return Progress(
+        *([SpinnerColumn()] if spinner else []),
+        *columns,
+        TimeElapsedColumn(),
+        console=Console(stderr=True),
+        transient=True,
+        disable=not sys.stderr.isatty(),
+    )
+
+
+@contextmanager
+def counting(description: str) -> Iterator[Callable[[int, int], None]]:
+    """A ``progress(k, n)`` callback drawing a transient bar on stderr while the block runs."""
+    with progress_bar() as bar:
+        task = bar.add_task(description, total=None)
+        yield lambda k, n: bar.update(task, completed=k, total=n)
+
+
+def check_scenario(scenario: str) -> None:
+    from hlik.criteria.unified import FUNCTIONAL_X0
+
+    if scenario not in FUNCTIONAL_X0:
+        raise HlikError(f"unknown scenario {scenario!r}; choose one of: {', '.join(FUNCTIONAL_X0)}")

@@ -1,0 +1,66 @@
+"""``hlik evaluate``: the scores of a trajectory file."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from typing import Annotated
+
+import typer
+from rich.table import Table
+
+from hlik.cli.app import (
+    FLAG,
+    CorpusOpt,
+    MetricOpt,
+    ScenarioOpt,
+    check_scenario,
+    console,
+    one_line,
+    warn,
+)
+from hlik.errors import HlikError
+from hlik.paths import corpus_setting
+
+
+def evaluate(
+    trajectory: Annotated[Path, typer.Argument(help="Trajectory .npz written by `hlik run`.")],
+    json_out: Annotated[
+        bool, typer.Option("--json", help="Print one JSON object.", metavar=FLAG, show_default=False)
+    ] = False,
+    corpus: CorpusOpt = None,
+    scenario: ScenarioOpt = "pose",
+    metric: MetricOpt = None,
+) -> None:
+    """Human-likeness criteria h_i and scores m_i, m_hl, m_f and m_hl,f of a trajectory."""
+    import json
+
+    from hlik.criteria.learned import learn
+    from hlik.criteria.unified import load_metric, midpoints
+    from hlik.errors import RobotError
+    from hlik.metrics import evaluate as evaluate_trajectory
+    from hlik.robot.model import load_robot
+    from hlik.trajectory import check_robot, load_trajectory
+
+    with one_line():
+        check_scenario(scenario)
+        unified_metric = load_metric(metric) if metric is not None else None
+        traj = load_trajectory(trajectory)
+        try:
+            r = load_robot(traj.robot)
+        except RobotError as e:
+            raise HlikError(f"{trajectory}: robot: {e}") from None
+        check_robot(trajectory, traj, r)
+        learned = learn(r, corpus if corpus is not None else corpus_setting()[0])
+        ev = evaluate_trajectory(traj, r, learned, scenario=scenario, metric=unified_metric)
+    warn(learned.notes)
+    if json_out:
+        sys.stdout.write(json.dumps(ev.to_json(), indent=2) + "\n")
+        return
+    x0 = midpoints(scenario, ev.metric)
+    title = f"{trajectory.name}: {Path(traj.robot).stem}, {traj.solver}; weights and x0: {ev.metric.source}"
+    table = Table("criterion", "mean h", "x0", "m", title=title)
+    for k in x0:
+        table.add_row(k, f"{ev.h[k].mean():.4g}", f"{x0[k]:g}", f"{ev.m[k]:.3f}")
+    console.print(table)
+    console.print(f"m_hl = {ev.m_hl:.3f}   m_f ({scenario}) = {ev.m_f:.3f}   m_hl,f = {ev.m_hl_f:.3f}")

@@ -1,0 +1,51 @@
+"""``hlik learn``: fit (or show) the learned criteria of a robot."""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+import typer
+from rich.table import Table
+
+from hlik.cli.app import (
+    CorpusOpt,
+    console,
+    counting,
+    one_line,
+    warn,
+)
+from hlik.paths import corpus_setting
+
+
+def learn(
+    robots: Annotated[list[str] | None, typer.Argument(help="Robot names (default: all).")] = None,
+    corpus: CorpusOpt = None,
+) -> None:
+    """Fit (or load from the cache) synergies, the swivel regressor and lambda_R; print what was learned."""
+    import numpy as np
+
+    from hlik.criteria.learned import learn as learn_robot
+    from hlik.paths import cache_dir
+    from hlik.robot.model import available_robots, load_robot
+
+    paper = {"armar3": 7.25, "armar6": 8.76, "dual_panda": 4.7}
+    table = Table("robot", "corpus", "PCA var. (5)", "1st-order var. (5)", "Psi rms", "lambda_R", "paper")
+    with one_line():
+        corpus = corpus if corpus is not None else corpus_setting()[0]
+        for name in robots or available_robots():
+            r = load_robot(name)
+            with counting(f"learning {name}'s criteria from the corpus") as progress:
+                lrn = learn_robot(r, corpus, progress=progress)
+            warn(lrn.notes)
+            table.add_row(
+                r.name,
+                f"{len(lrn.corpus)} files",
+                f"{100 * lrn.synergies.explained.sum():.1f} %",
+                f"{100 * lrn.synergies.vel_explained.sum():.1f} %",
+                f"{np.degrees(lrn.swivel_rms):.1f}°",
+                f"{lrn.scale:.2f}",
+                f"{paper.get(r.name, float('nan')):g}",
+            )
+        folder = cache_dir()
+    console.print(table)
+    console.print(f"cache: {folder}")

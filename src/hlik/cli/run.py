@@ -1,0 +1,258 @@
+"""``hlik run``: retarget a motion (:func:`hlik.pipeline.run`), write the recording and the
+trajectory, print the summary and the warnings."""
+
+from __future__ import annotations
+
+import shlex
+from collections.abc import Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING, Annotated
+
+import typer
+
+from hlik.errors import HlikError
+from hlik.paths import corpus_setting
+
+if TYPE_CHECKING:  # imported where used: `hlik --help` stays quick
+    from hlik.pipeline import RunResult, RunSpec
+    from hlik.robot.model import Robot
+
+from hlik.cli.app import (
+    FLAG,
+    CorpusOpt,
+    MetricOpt,
+    MotionArg,
+    console,
+    one_line,
+    progress_bar,
+    warn,
+)
+from hlik.cli.outputs import check_outputs, file_stem, write_outputs
+from hlik.cli.summary import run_summary
+
+RobotOpt = Annotated[
+    str, typer.Option("--robot", "-r", help="Robot name (see `hlik robots`) or path of a robot .toml.")
+]
+SolverOpt = Annotated[str, typer.Option("--solver", "-s", help="Retargeting solver: jm, jv, qp or slsqp.")]
+OutOpt = Annotated[
+    Path | None,
+    typer.Option(
+        "--out",
+        "-o",
+        help="Output .rrd (default: recordings/<motion>_<robot>_<solver>[_<what else differs>].rrd).",
+        show_default=False,
+    ),
+]
+ForceOpt = Annotated[
+    bool,
+    typer.Option(
+        "--force", "-f", help="Replace an existing output (.rrd, .npz).", metavar=FLAG, show_default=False
+    ),
+]
+RateOpt = Annotated[float, typer.Option(help="Resample the motion to this rate (Hz); 0 keeps it.")]
+LayoutOpt = Annotated[str, typer.Option(help="side: robot beside the human; overlay: on the human.")]
+StackOpt = Annotated[
+    str, typer.Option(help="Task stack: a .toml file, or a bundled one (ee_pose, relative_pose).")
+]
+CriteriaOpt = Annotated[
+    str | None,
+    typer.Option(
+        help="Human-likeness criteria to add (jv, qp, slsqp), e.g. SYN,HJA_r; replaces the stack's."
+    ),
+]
+RunScenarioOpt = Annotated[
+    str | None, typer.Option(help="Functional score: pose or relative (default: the stack's scenario).")
+]
+GradientsOpt = Annotated[
+    str, typer.Option(help="slsqp: analytic gradients, or fd (finite differences, as the paper).")
+]
+PlacementOpt = Annotated[
+    str | None,
+    typer.Option(
+        help="Where the robot stands: reach (reachability maps, the paper's), mapped (where "
+        "the mapped joint angles reach the hands), working (within the maps, the hands at the "
+        "subject's distance from the shoulders), optimize (the best of reach, mapped and others "
+        "by m_hl,f of a fast QP run), shoulders (on the human's), or X,Y,YAW (world m, m, deg); "
+        "each stands the robot on the floor. X,Y,YAW,Z also sets the base height (m; off the "
+        "floor, warned). Default: the robot's (robots/<name>.toml; reach, 2-Panda mapped).",
+        show_default=False,
+    ),
+]
+ScaleOpt = Annotated[
+    str | None,
+    typer.Option(
+        help="Scale the subject before retargeting: auto (to the robot's arm length, about the "
+        "shoulders) or a factor. Default: the robot's (1 for ARMAR-III, ARMAR-6, 2-Panda, as in the paper).",
+        show_default=False,
+    ),
+]
+
+
+def run(
+    motion: MotionArg = None,
+    robot: RobotOpt = "armar6",
+    solver: SolverOpt = "jm",
+    out: OutOpt = None,
+    force: ForceOpt = False,
+    rate: RateOpt = 100.0,
+    layout: LayoutOpt = "side",
+    corpus: CorpusOpt = None,
+    stack: StackOpt = "ee_pose",
+    criteria: CriteriaOpt = None,
+    scenario: RunScenarioOpt = None,
+    gradients: GradientsOpt = "analytic",
+    placement: PlacementOpt = None,
+    scale: ScaleOpt = None,
+    metric: MetricOpt = None,
+) -> None:
+    """Retarget a motion to a robot; write a Rerun recording and the trajectory (.npz) beside it."""
+    from hlik.pipeline import RunSpec
+    from hlik.pipeline import run as run_pipeline
+    from hlik.recording import LAYOUTS
+    from hlik.robot.model import load_robot
+
+    with one_line():
+        corpus, corpus_source = (corpus, "--corpus") if corpus is not None else corpus_setting()
+        chosen = None if criteria is None else tuple(c.strip() for c in criteria.split(",") if c.strip())
+        spec = RunSpec(
+            motion=motion,
+            robot=robot,
+            solver=solver,
+            stack=stack,
+            criteria=chosen,
+            scenario=scenario,
+            placement=placement,
+            scale=scale,
+            rate=rate,
+            corpus=corpus,
+            metric=metric,
+            gradients=gradients,
+        )
+        if layout not in LAYOUTS:
+            raise HlikError(f"unknown layout {layout!r}; choose one of: {', '.join(LAYOUTS)}")
+        spec.check()
+        r = load_robot(robot)
+        stem = file_stem(spec.motion_path.stem, r.name, _tag(spec, r, layout))
+        rrd = out or Path("recordings") / f"{stem}.rrd"
+        npz = rrd.with_suffix(".npz")
+        check_outputs(rrd, npz, _inputs(spec), create=out is None, force=force)
+        with progress_bar(spinner=True) as bar:
+            task = bar.add_task("", total=None)
+
+            def show(stage: str, done: int | None, total: int | None) -> None:
+                bar.update(task, description=stage, completed=done or 0, total=total)
+
+            result = run_pipeline(spec, show, robot=r)
+            bar.update(task, description=f"writing {rrd}", total=None)
+            info = _settings(result, layout)
+            write_outputs(npz, rrd, result.trajectory, r, layout, evaluation=result.evaluation, info=info)
+    _report(result, rrd, npz, corpus_source)
+
+
+def _report(result: RunResult, rrd: Path, npz: Path, corpus_source: str) -> None:
+    """The summary, the scores, the warnings and the commands to go on with."""
+    traj, ev, spec = result.trajectory, result.evaluation, result.spec
+    summary = run_summary(spec.motion_path.stem, traj, result.motion, result.solve_seconds, rrd, npz, ev)
+    summary.add_row("criteria learned from", _corpus_label(spec.corpus, result.learned.corpus, corpus_source))
+    console.print(summary)
+    if result.tried:
+        scores = ", ".join(f"{c.name} {c.m_hl_f:.3f}" for c in result.tried)
+        console.print(f"placement optimize (m_hl,f of a short qp run): {scores}")
+    console.print(
+        f"human likeness m_hl = {ev.m_hl:.3f}, functional m_f = {ev.m_f:.3f} ({result.scenario}), "
+        f"m_hl,f = {ev.m_hl_f:.3f}, weights and x0: {ev.metric.source}",
+        soft_wrap=True,
+    )
+    warn(result.warnings)  # at the end, where they are seen
+    # the same scores again: everything that changed them here is passed on
+    details = ["hlik", "evaluate", str(npz), "--scenario", result.scenario]
+    details += ["--corpus", str(spec.corpus)] if spec.corpus is not None else []
+    details += ["--metric", str(spec.metric)] if spec.metric is not None else []
+    # Commands to copy: each on its own line, never wrapped inside a path.
+    console.print(f"details: {shlex.join(details)}", soft_wrap=True)
+    console.print(f"open with: rerun {shlex.quote(str(rrd))}", soft_wrap=True)
+
+
+def _settings(result: RunResult, layout: str) -> dict[str, str]:
+    """The settings the recording's result panel shows (setting -> text)."""
+    spec = result.spec
+    return {
+        "stack": str(spec.stack),
+        "criteria": ", ".join(spec.task_stack().criteria) or "-",
+        "scenario": result.scenario,
+        "placement": spec.placement or result.robot.placement,
+        "corpus": _corpus_label(spec.corpus, result.learned.corpus),
+        "gradients": spec.gradients,
+    }
+
+
+def _inputs(spec: RunSpec) -> list:
+    """The files a run reads, which its outputs must not replace."""
+    from hlik.paths import tasks_dir
+
+    return [spec.motion_path, spec.metric, spec.robot, spec.stack, tasks_dir() / f"{spec.stack}.toml"]
+
+
+def _tag(spec: RunSpec, robot: Robot, layout: str) -> str:
+    """:func:`_run_tag` of a run: the spec's choices that differ from the defaults."""
+    from hlik.paths import tasks_dir
+
+    stack = spec.task_stack()
+    bundled = not Path(spec.stack).exists() and (tasks_dir() / f"{spec.stack}.toml").is_file()
+    return _run_tag(
+        solver=spec.solver,
+        stack=stack.name if bundled else _stack_label(Path(spec.stack).stem, stack.name),
+        default_stack=bundled and stack.name == "ee_pose",
+        criteria=stack.criteria,
+        gradients=spec.gradients,
+        placement=spec.placement if spec.placement not in (None, robot.placement) else None,
+        scale=str(spec.scale) if spec.scale not in (None, str(robot.subject_scale)) else None,
+        scenario=spec.scenario if spec.scenario not in (None, stack.scenario) else None,
+        metric=None if spec.metric is None else Path(spec.metric),
+        rate=spec.rate,
+        layout=layout,
+        corpus=spec.corpus,
+    )
+
+
+def _run_tag(
+    *,
+    solver: str,
+    stack: str,
+    default_stack: bool,
+    criteria: Sequence[str],
+    gradients: str,
+    placement: str | None,
+    scale: str | None = None,
+    scenario: str | None,
+    metric: Path | None,
+    rate: float,
+    layout: str,
+    corpus: Path | None,
+) -> str:
+    """The part of the default output name after motion and robot: every choice that changes the
+    result, defaults left out, e.g. ``slsqp_SYN_HJA_r_fd``, ``qp_my_stack_at-0.4_1.2_90``."""
+    parts = [solver, *(() if default_stack else (stack,)), *criteria]
+    parts += ["fd"] if gradients == "fd" else []
+    parts += [f"at-{placement}"] if placement is not None else []
+    parts += [f"scale-{scale}"] if scale is not None else []
+    parts += [scenario] if scenario is not None else []
+    parts += [f"metric-{metric.stem}"] if metric is not None else []
+    parts += [] if rate == 100.0 else ["native" if rate == 0 else f"{rate:g}Hz"]
+    parts += [layout] if layout != "side" else []
+    parts += [f"corpus-{Path(corpus).resolve().name or 'root'}"] if corpus is not None else []
+    return "_".join(parts)
+
+
+def _stack_label(stem: str, name: str) -> str:
+    """A stack file in a default output name: its stem, and its ``name`` where that differs (a
+    copied ``my.toml`` still named ``ee_pose`` must not write the bundled stack's file)."""
+    return stem if name == stem else f"{stem}_{name}"
+
+
+def _corpus_label(corpus: Path | None, files: Sequence[str], source: str = "") -> str:
+    """``demo (demo_pour_wipe.xml)`` or ``DIR (n files, from HLIK_CORPUS)``."""
+    if corpus is None:
+        return f"the bundled demo ({', '.join(files)})"
+    count = f"{len(files)} file" + ("s" if len(files) != 1 else "")
+    return f"{corpus} ({count}" + (f", from {source})" if source else ")")

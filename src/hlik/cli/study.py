@@ -1,0 +1,141 @@
+"""``hlik study``: the paper's study over takes, robots and approaches."""
+
+from __future__ import annotations
+
+import math
+import os
+from pathlib import Path
+from typing import TYPE_CHECKING, Annotated
+
+import typer
+from rich.table import Table
+from rich.text import Text
+
+from hlik.cli.app import (
+    MOTION_FILES,
+    CorpusOpt,
+    console,
+    one_line,
+    progress_bar,
+)
+from hlik.errors import HlikError
+from hlik.paths import corpus_setting, demo_motion_path
+
+if TYPE_CHECKING:
+    from hlik.study.runner import StudyResult
+
+
+TakesArg = Annotated[
+    Path | None,
+    typer.Argument(
+        help="Folder of MMM takes (default: ../shared/motion_data/kit_bimanual if present, "
+        "else the bundled demo).",
+        show_default=False,
+    ),
+]
+RobotsOpt = Annotated[str, typer.Option(help="Robots, comma-separated.")]
+FolderOpt = Annotated[Path, typer.Option("--out", "-o", help="Output folder (cells, metric, report).")]
+ApproachesOpt = Annotated[
+    Path | None,
+    typer.Option(
+        help="Approach file, or a bundled one: paper (the default, the paper's 53) or quick (JM and "
+        "QP, minutes).",
+        show_default=False,
+    ),
+]
+SecondsOpt = Annotated[
+    float | None,
+    typer.Option(
+        help="Retarget this many seconds of each take, after the first (default: all).", show_default=False
+    ),
+]
+WorkersOpt = Annotated[
+    int | None,
+    typer.Option(help="Parallel Ray workers (default: all cores; 1: in this process).", show_default=False),
+]
+AddressOpt = Annotated[
+    str | None, typer.Option(help="Join this Ray cluster (e.g. ray://host:10001).", show_default=False)
+]
+
+
+def study(
+    takes: TakesArg = None,
+    robots: RobotsOpt = "armar3,armar6,dual_panda",
+    out: FolderOpt = Path("study"),
+    approaches: ApproachesOpt = None,
+    seconds: SecondsOpt = None,
+    workers: WorkersOpt = None,
+    address: AddressOpt = None,
+    corpus: CorpusOpt = None,
+) -> None:
+    """The paper's study: retarget, correlate the criteria, derive the metric, rank the approaches."""
+    from hlik.robot.model import robot_toml
+    from hlik.study.approaches import PAPER, load_approaches
+    from hlik.study.runner import plan, run_study
+
+    folder = takes or _default_takes()
+    with one_line():
+        if seconds is not None and not (math.isfinite(seconds) and seconds > 0):
+            raise HlikError(f"--seconds must be positive and finite, got {seconds:g}")
+        if workers is not None and workers < 1:
+            raise HlikError(f"--workers must be at least 1, got {workers}")
+        files = _takes(folder)
+        names = [r.strip() for r in robots.split(",") if r.strip()]
+        if not names:
+            raise HlikError(f"unknown robot {robots!r}; see `hlik robots`")
+        for name in names:
+            robot_toml(name)  # a bundled name or a path of a .toml; the message lists the known ones
+        listed = load_approaches(approaches or PAPER)
+        n_cells = len(plan(files, names, listed, seconds))
+        console.print(
+            f"study: {len(files)} takes x {len(names)} robots x {len(listed)} approaches = "
+            f"{n_cells} cells -> {out}/"
+        )
+        with progress_bar() as progress:
+            task = progress.add_task("cells", total=n_cells)
+            advance = lambda o: progress.update(task, advance=1, description=o.cell.file_name[:48])  # noqa: E731
+            corpus = corpus if corpus is not None else corpus_setting()[0]
+            result = run_study(files, names, listed, out, seconds, workers, address, advance, corpus)
+    _report(result)
+
+
+def _takes(folder: Path) -> list[Path]:
+    """The motion files of ``folder`` (or ``folder`` itself, a file).
+
+    Raises:
+        HlikError: none there, or one that is no file.
+    """
+    files = (
+        sorted(f for pattern in MOTION_FILES for f in folder.glob(pattern)) if folder.is_dir() else [folder]
+    )
+    if not files or not all(f.is_file() for f in files):
+        raise HlikError(f"{folder}: no takes ({', '.join(MOTION_FILES)})")
+    return files
+
+
+def _report(result: StudyResult) -> None:
+    """The failed cells, the five best approaches per scenario and where the files are."""
+    failed = [o for o in result.outcomes if o.error]
+    for o in failed:
+        console.print(Text.assemble(("failed", "yellow"), f" {o.cell.file_name}: {o.error}"), highlight=False)
+    for ranking in result.rankings:
+        table = Table(
+            "approach", "m_hl", "m_f", "m_hl,f", title=f"best approaches, {ranking.scenario} scenario"
+        )
+        for r in ranking.rows[:5]:
+            table.add_row(r["approach"], f"{r['m_hl']:.3f}", f"{r['m_f']:.3f}", f"{r['m_hl_f']:.3f}")
+        console.print(table)
+    reused = sum(o.reused for o in result.outcomes)
+    console.print(
+        f"{len(result.outcomes)} cells ({reused} reused, {len(failed)} failed) in "
+        f"{result.wall_seconds:.0f} s; metric: {result.metric_file} (hlik run/evaluate --metric); "
+        f"report: {result.report}"
+    )
+
+
+def _default_takes() -> Path:
+    """The shared KIT takes beside the checkout (or under HLIK_DATA), else the bundled demo."""
+    data = os.environ.get("HLIK_DATA")
+    candidates = [Path(data) / "kit_bimanual"] if data else []
+    candidates.append(Path.cwd().parent / "shared" / "motion_data" / "kit_bimanual")
+    return next((c for c in candidates if c.is_dir()), demo_motion_path())

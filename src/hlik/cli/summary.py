@@ -1,0 +1,119 @@
+"""The tables ``hlik run`` prints: the run's summary, the controller's and the posture's rows."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from rich.table import Table
+
+
+def controller_line(c) -> str:
+    """The summary's ``controller`` row: what :class:`hlik.executable.ControllerChecks` found."""
+    j = c.to_json()
+    parts = []
+    if c.has_acceleration_limits:
+        parts.append(
+            f"peak acceleration {j['max_acceleration_ratio']:.2f} of its limit ({j['acceleration_joint']}), "
+            f"{j['frames_over_acceleration']} frames over"
+        )
+    else:
+        parts.append("no acceleration limits given")
+    if c.has_jerk_limits:
+        parts.append(
+            f"peak jerk {j['max_jerk_ratio']:.2f} of its limit ({j['jerk_joint']}), "
+            f"{j['frames_over_jerk']} frames over"
+        )
+    else:
+        parts.append(f"peak jerk {j['max_jerk']:.0f} rad/s³ ({j['jerk_joint']}; no jerk limits given)")
+    if c.has_effort_limits:
+        parts.append(
+            f"peak torque {j['max_torque_ratio']:.2f} of its limit ({j['torque_joint']}, "
+            f"{j['max_torque']:.1f} N m), {j['frames_over_effort']} frames over"
+        )
+    else:
+        parts.append(f"peak torque {j['max_torque']:.1f} N m ({j['torque_joint']}; no effort limits given)")
+    parts.append(f"a joint within 0.5° of a stop in {100 * j['share_at_stop']:.1f} % of frames")
+    parts.append(f"base at z {j['base_height']:.3f} m, lowest point {j['lowest_point']:.3f} m")
+    if j["end_speed"] > 0.0:
+        parts.append(
+            f"ends moving at up to {j['end_speed']:.2f} rad/s ({j['stop_time']:.2f} s to stop at the "
+            "acceleration limits)"
+        )
+    else:
+        parts.append("ends at rest")
+    return "; ".join(parts)
+
+
+def posture_line(p) -> str:
+    """The summary's ``posture`` row: the robot's :class:`hlik.posture.Posture` beside the subject's
+    (medians; lengths as shares of the arm's length; left / right)."""
+    j = p.to_json()
+    pair = lambda key: " / ".join(f"{v:.2f}" for v in j[key])  # noqa: E731
+    percent = lambda key: " / ".join(f"{100 * v:.0f} %" for v in j[key])  # noqa: E731
+    return (
+        f"trunk lean {j['trunk_lean_deg']:.0f}° (subject {j['subject_trunk_lean_deg']:.0f}°); "
+        f"elbows in front of the shoulders {pair('elbow_front_share')} arm (subject "
+        f"{pair('subject_elbow_front_share')}), > 5 cm behind in {percent('elbow_behind_share')} of frames "
+        f"(subject {percent('subject_elbow_behind_share')}); hands in front {pair('hand_front_share')} arm "
+        f"(subject {pair('subject_hand_front_share')}); swivel off the subject's by "
+        f"{' / '.join(f'{v:.0f}°' for v in j['swivel_difference_deg'])}; arm joint path "
+        f"{j['path_ratio']:.2f} of the subject's"
+    )
+
+
+def run_summary(title: str, traj, motion, solve_time: float, rrd: Path, npz: Path, ev) -> Table:
+    import numpy as np
+
+    from hlik.criteria.functional import relative_errors
+    from hlik.findings import LAG, lag_spans
+
+    fpos, fori = ev.fpos, ev.fori
+    table = Table(show_header=False, box=None, title=f"{title} -> {Path(traj.robot).stem} ({traj.solver})")
+    table.add_column(no_wrap=True)
+    table.add_column(overflow="fold")
+    table.add_row("frames", f"{traj.n_frames} over {motion.duration:.2f} s at {motion.rate:.1f} Hz")
+    p = traj.placement
+    table.add_row(
+        "placement",
+        f"{p.method}: base at ({p.translation[0]:.2f}, {p.translation[1]:.2f}, {p.translation[2]:.2f}) m, "
+        f"yaw {np.degrees(p.yaw):.0f}°",
+    )
+    table.add_row("solve time", f"{solve_time:.2f} s ({1e3 * solve_time / traj.n_frames:.3f} ms/frame)")
+    d = traj.diagnostics
+    table.add_row(
+        "solver",
+        f"{d.n_failed} failed, {d.n_unconverged} unconverged (at the iteration cap) of "
+        f"{traj.n_frames} frames; median {np.median(d.iterations):.0f} iterations/frame",
+    )
+    for i, side in enumerate(("left", "right")):
+        table.add_row(
+            f"{side} hand",
+            f"fPOS mean {100 * fpos[:, i].mean():.1f} cm, max {100 * fpos[:, i].max():.1f} cm; "
+            f"fORI mean {np.degrees(fori[:, i].mean()):.1f}°, max {np.degrees(fori[:, i].max()):.1f}°",
+        )
+    speed = ev.max_speed_ratio
+    speeds = (
+        f"joint speeds within their limits (at most {speed:.2f} of one)"
+        if speed <= 1.0 + 1e-6
+        else f"max joint speed {speed:.2f} x its limit"
+    )
+    table.add_row("body", f"{int(np.count_nonzero(ev.collisions))} frames in self-collision; {speeds}")
+    table.add_row("controller", controller_line(ev.controller))
+    table.add_row("posture", posture_line(ev.posture))
+    lag = lag_spans(fpos, traj.times) if ev.scenario == "pose" else ""  # relative: no hand targets
+    if lag:
+        reason = (
+            "jm maps the joints and does not track the hands"
+            if traj.solver == "jm"
+            else "out of reach, too fast for the speed limits, or outweighed by the criteria"
+        )
+        table.add_row("lagging", f"hands > {100 * LAG:.0f} cm off their targets ({reason}): {lag}")
+    off_pos, off_rot = relative_errors(traj.tcp_pos, traj.tcp_rot, traj.targets.pos, traj.targets.rot)
+    table.add_row(
+        "hands relative",
+        f"fPOS_off mean {100 * off_pos.mean():.1f} cm, fORI_off mean {np.degrees(off_rot.mean()):.1f}°",
+    )
+    size = lambda path: f"{path.stat().st_size / 1e6:.1f} MB"  # noqa: E731
+    table.add_row("recording", f"{rrd} ({size(rrd)})")
+    table.add_row("trajectory", f"{npz} ({size(npz)})")
+    return table

@@ -1,0 +1,111 @@
+"""hlik.pipeline: one run from files to scores, the same for the library, the command line and the
+study."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+import hlik
+import hlik.pipeline
+from hlik.cli import app
+from hlik.criteria.learned import learn
+from hlik.errors import HlikError
+from hlik.human.load import load_motion
+from hlik.metrics import evaluate
+from hlik.pipeline import RunSpec, run
+from hlik.problem.placement import placement_from_spec
+from hlik.problem.scale import scale_subject
+from hlik.retarget import retarget
+from hlik.robot.model import load_robot
+from hlik.solvers import get_solver
+from hlik.solvers.stack_file import load_stack
+from hlik.study.approaches import Approach
+from hlik.study.dataset import Cell, run_cell
+
+
+@pytest.mark.parametrize(
+    ("change", "said"),
+    [
+        ({"solver": "ik"}, "unknown solver 'ik'"),
+        ({"criteria": ("SYN",)}, "jm maps joints and cannot add criteria"),
+        ({"solver": "qp", "criteria": ("SYNN",)}, "SYNN"),
+        ({"solver": "qp", "gradients": "fd"}, "--gradients fd is for --solver slsqp"),
+        ({"solver": "slsqp", "gradients": "numeric"}, "unknown gradients 'numeric'"),
+        ({"scenario": "grasp"}, "unknown scenario 'grasp'"),
+        ({"rate": -5.0}, "--rate must be positive"),
+        ({"rate": float("nan")}, "--rate must be positive"),
+        ({"placement": "nan,0,0"}, "must be finite numbers"),
+        ({"stack": "no_such_stack"}, "no_such_stack"),
+    ],
+)
+def test_a_bad_setting_fails_in_one_line_before_anything_is_read(change, said, monkeypatch, cut_take):
+    def read(*args, **kwargs):
+        raise AssertionError("the motion was read")
+
+    monkeypatch.setattr(hlik.pipeline, "load_motion", read)
+    spec = RunSpec(motion=cut_take, **change)
+    with pytest.raises(HlikError) as err:
+        run(spec)
+    assert said in str(err.value) and "\n" not in str(err.value)
+
+
+def test_a_run_is_its_stages(cut_take):
+    """run(spec) = read, scale, place, retarget, evaluate, composed by hand (the same numbers)."""
+    spec = RunSpec(motion=cut_take, robot="armar3", solver="qp", criteria=("SYN",), span=(1.0, 1.4))
+    result = run(spec)
+    robot = load_robot("armar3")
+    motion = scale_subject(load_motion(cut_take, rate=100.0).crop(1.0, 1.4), robot)
+    learned = learn(robot)
+    where = placement_from_spec(robot.placement, robot, motion)
+    settings = load_stack("ee_pose").with_criteria(["SYN"]).settings("qp")
+    traj = retarget(motion, robot, get_solver("qp", settings, learned), where)
+    ev = evaluate(traj, robot, learned)
+    np.testing.assert_array_equal(result.trajectory.q, traj.q)
+    assert result.evaluation.m_hl == ev.m_hl and result.evaluation.m_f == ev.m_f
+    np.testing.assert_array_equal(result.evaluation.fpos, ev.fpos)
+    m_hl, m_f = result.evaluation.unified_curves()
+    assert np.isclose(m_hl.mean(), ev.m_hl) and np.isclose(m_f.mean(), ev.m_f)
+    assert result.motion.n_frames == 41 and result.scenario == "pose" and result.solve_cpu > 0
+
+
+def test_the_command_line_and_a_study_cell_run_the_pipeline(cut_take, tmp_path):
+    """The same spec through ``hlik run`` and a study cell gives the library's trajectory."""
+    spec = RunSpec(motion=cut_take, robot="armar6", solver="qp", stack="paper_opt", criteria=("HJA_r",))
+    cell = Cell(cut_take, "armar6", Approach("qp", ("HJA_r",)), seconds=0.3)
+    result = run(RunSpec(**{**spec.__dict__, "span": (1.0, 1.3)}))
+    robot = result.robot
+    table = run_cell(cell, robot, result.learned)
+    np.testing.assert_allclose(table.column("fpos_left").to_numpy(), result.evaluation.fpos[:, 0])
+    out = tmp_path / "x.rrd"
+    args = ["run", str(cut_take), "-r", "armar6", "-s", "qp", "--stack", "paper_opt", "--criteria", "HJA_r"]
+    done = CliRunner().invoke(app, [*args, "--rate", "50", "-o", str(out)])
+    assert done.exit_code == 0, done.output
+    whole = run(RunSpec(**{**spec.__dict__, "rate": 50.0}), robot=robot, learned=result.learned)
+    np.testing.assert_array_equal(hlik.load_trajectory(out.with_suffix(".npz")).q, whole.trajectory.q)
+
+
+def test_shared_stage_outputs_are_used_not_recomputed(cut_take, monkeypatch):
+    """A caller's motion, placement and learned pieces go straight to the solver (the study's
+    approaches of one take share them)."""
+    robot = load_robot("armar6")
+    spec = RunSpec(motion=cut_take, span=(1.0, 1.2))
+    first = run(spec, robot=robot)
+
+    def fail(*args, **kwargs):
+        raise AssertionError("recomputed")
+
+    for name in ("load_motion", "learn", "place"):
+        monkeypatch.setattr(hlik.pipeline, name, fail)
+    stages: list[str] = []
+    again = run(
+        spec,
+        lambda stage, done, total: stages.append(stage),
+        robot=robot,
+        motion=first.motion,
+        learned=first.learned,
+        placement=first.trajectory.placement,
+    )
+    np.testing.assert_array_equal(again.trajectory.q, first.trajectory.q)
+    assert stages[0].startswith("retargeting to ARMAR-6") and stages[-1] == "evaluating the criteria"
