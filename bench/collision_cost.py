@@ -51,7 +51,7 @@ def main() -> None:
             for r in range(args.repeats):
                 for on in (True, False) if r % 2 == 0 else (False, True):
                     start = time.process_time()
-                    solve(problem, replace(settings, self_collision=on), learned)
+                    solve(replace(problem, learned=learned), replace(settings, self_collision=on))
                     times[on].append((time.process_time() - start) / problem.n_frames)
         with_ms, without_ms = (1e3 * np.median(times[on]) for on in (True, False))
         print(f"{name:11s} {with_ms:8.2f} {without_ms:10.2f} {with_ms / without_ms:6.2f}", flush=True)

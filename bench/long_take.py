@@ -107,7 +107,7 @@ def main() -> None:
         print(f"{'':<12} {motion.n_frames} frames over {motion.duration:.1f} s")
         learned = stage("learn", lambda: learn(robot), peaks)
         where = stage("place", lambda: placement_from_spec(robot.placement, robot, motion), peaks)
-        jm = get_solver("jm", None, learned)
+        jm = get_solver("jm")
         traj = stage("retarget", lambda: retarget(motion, robot, jm, where), peaks)
         ev = stage("evaluate", lambda: evaluate(traj, robot, learned), peaks)
         rrd = out / f"{source.stem}.rrd"

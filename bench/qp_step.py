@@ -66,7 +66,7 @@ def mink_frames(problem) -> tuple[np.ndarray, np.ndarray]:
 def hlik_frames(problem, settings, learned) -> tuple[float, np.ndarray]:
     """CPU seconds per frame (mean over the run) and steps per frame of hlik's QP."""
     start = time.process_time()
-    result = solve(problem, settings, learned)
+    result = solve(replace(problem, learned=learned), settings)
     return (time.process_time() - start) / problem.n_frames, result.diagnostics.iterations
 
 

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import time
+from dataclasses import replace
 
 import numpy as np
 
@@ -32,7 +33,9 @@ def cpu_per_frame(problem, learned, criteria: tuple[str, ...], gradients: str) -
     """CPU seconds per frame after the first, the first frame's CPU seconds and its evaluations."""
     settings = SLSQPSettings(criteria=criteria, gradients=gradients)
     marks = [time.process_time()]
-    result = solve(problem, settings, learned, progress=lambda k: marks.append(time.process_time()))
+    result = solve(
+        replace(problem, learned=learned), settings, progress=lambda k: marks.append(time.process_time())
+    )
     cpu = np.diff(marks)
     return float(np.mean(cpu[1:])), float(cpu[0]), int(result.diagnostics.iterations[0])
 

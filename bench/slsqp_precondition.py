@@ -61,11 +61,11 @@ def main() -> None:
             order = PRECONDITIONERS if repeat % 2 == 0 else PRECONDITIONERS[::-1]
             for precondition in order:
                 settings = load_stack("paper_opt").with_criteria(criteria).settings("slsqp")
-                solver = get_solver("slsqp", replace(settings, precondition=precondition), learned)
+                solver = get_solver("slsqp", replace(settings, precondition=precondition))
                 cpu, frames, evals, conv, failed, hl, f = 0.0, 0, [], [], 0, [], []
                 for motion, placement in scenes:
                     start = time.process_time()
-                    traj = hlik.retarget(motion, robot, solver, placement)
+                    traj = hlik.retarget(motion, robot, solver, placement, learned)
                     cpu += time.process_time() - start
                     frames += traj.n_frames
                     d = traj.diagnostics

@@ -87,8 +87,9 @@ def reachable_targets():
     return make
 
 
-def solve_problem(solve, robot, motion, targets, placement, settings=None, **kwargs):
-    """Run a solver module's ``solve`` on the problem of ``motion`` with the given targets.
+def solve_problem(solve, robot, motion, targets, placement, settings=None, learned=None, **kwargs):
+    """Run a solver module's ``solve`` on the problem of ``motion`` with the given targets (and
+    ``learned`` pieces; learned for the settings' criteria if None).
 
     Returns the joint angles (T, n) and the :class:`~hlik.solvers.base.SolverResult`.
     """
@@ -96,7 +97,8 @@ def solve_problem(solve, robot, motion, targets, placement, settings=None, **kwa
 
     from hlik.problem.problem import build_problem
 
-    problem = replace(build_problem(motion, robot, placement), targets=targets)
+    criteria = getattr(settings, "criteria", ())
+    problem = replace(build_problem(motion, robot, placement, learned, criteria), targets=targets)
     result = solve(problem, settings, **kwargs) if settings is not None else solve(problem, **kwargs)
     return result.q, result
 

@@ -185,7 +185,7 @@ def test_bracketed_names_print_as_written(take, tmp_path, monkeypatch):
 BAD_SETTINGS = [
     ("[qp]\nposition_cost = -1.0", "[qp] position_cost"),
     ("[qp]\norientation_cost = nan", "[qp] orientation_cost"),
-    ("[qp]\nvelocity = inf", "[qp] velocity"),
+    ("[qp]\nvelocity_cost = inf", "[qp] velocity_cost"),
     ("[qp]\nmax_iter = 0", "[qp] max_iter"),
     ("[qp]\nmax_iter = -3", "[qp] max_iter"),
     ("[qp]\nmax_iter = 2.5", "[qp] max_iter"),
@@ -201,7 +201,7 @@ BAD_SETTINGS = [
     ("[slsqp]\nftol_rel = -1e-3", "[slsqp] ftol_rel"),
     ("[slsqp]\nmax_eval = 0", "[slsqp] max_eval"),
     ("[slsqp]\nfirst_eval = 1.5", "[slsqp] first_eval"),
-    ("[slsqp]\ncriterion = -10.0", "[slsqp] criterion"),
+    ("[slsqp]\ncriterion_cost = -10.0", "[slsqp] criterion_cost"),
     ("[gamma]\nSYN = -1.0", "[gamma] SYN"),
     ("[gamma]\nSYN = nan", "[gamma] SYN"),
     ("[qp.gamma]\nHJA_r = inf", "[qp.gamma] HJA_r"),
@@ -246,9 +246,16 @@ bad_count = st.one_of(st.integers(max_value=0), st.floats(0.1, 1e3).filter(lambd
 )
 def test_settings_classes_refuse_bad_values_in_python_too(cls, value, count, data):
     weights = {
-        QPSettings: ["position_cost", "criterion_cost", "velocity", "damping", "collision_margin"],
-        JVSettings: ["weight", "jla_gamma", "damping", "orientation_weight"],
-        SLSQPSettings: ["position", "orientation", "velocity", "jerk", "criterion", "position_gamma"],
+        QPSettings: ["position_cost", "criterion_cost", "velocity_cost", "damping", "collision_margin"],
+        JVSettings: ["criterion_cost", "jla_gamma", "damping", "orientation_cost"],
+        SLSQPSettings: [
+            "position_cost",
+            "orientation_cost",
+            "velocity_cost",
+            "jerk_cost",
+            "criterion_cost",
+            "position_gamma",
+        ],
     }[cls]
     counts = {QPSettings: ["max_iter"], JVSettings: ["max_iter"], SLSQPSettings: ["max_eval", "first_eval"]}[
         cls

@@ -311,7 +311,7 @@ def test_slsqp_with_finite_differences_reports_every_frame(short_take):
     seen: list[int] = []
     fd = replace(SLSQPSettings(), gradients="fd")
     where = placement_from_spec("mapped", robot, motion)
-    retarget(motion, robot, get_solver("slsqp", fd, learned, seen.append), where)
+    retarget(motion, robot, get_solver("slsqp", fd, seen.append), where, learned)
     assert seen == list(range(motion.n_frames))
 
 

@@ -14,13 +14,12 @@ from hlik.criteria.eea import (
     eea_cost,
     eea_r_target,
     eea_residual,
-    forward_fill,
-    swivel_angle,
     swivel_gradient,
     swivel_jacobian,
 )
 from hlik.human.demo import demo_motion
 from hlik.human.kinematics import forward_kinematics
+from hlik.human.swivel import forward_fill, swivel_angle
 from hlik.robot.state import robot_state
 
 MIRROR = np.array([-1.0, 1.0, 1.0])

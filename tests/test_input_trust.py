@@ -53,7 +53,7 @@ def _motion_residuals(robot, learned, traj, q):
     smooth = smoothness_terms(robot, 0.3, 0.2, 0.1)[0]
     mje = MJE(robot)
     return {
-        "MIS": MIS(robot, learned).residual(state, sample),
+        "MIS": MIS(robot, learned.synergies).residual(state, sample),
         "MJE": mje.residual(state, sample),
         "MJE solver form": backward_difference(q, sample.history, mje.solver_stencil, mje.unlimited),
         "smoothness": smooth.residual(state, sample),

@@ -190,8 +190,8 @@ def test_criterion_in_the_null_space_lowers_its_cost(takes):
     motion = slowed(load_motion(takes[0], rate=100).crop(2.0, 2.5), 5.0)
     for base in (JVSettings(jla_gamma=0.0), JVSettings(scenario="relative")):
         with_hja = replace(base, criteria=("HJA_r",))
-        plain = costs(retarget(motion, r, jv_solver(base, learned)), r, learned)
-        hja = costs(retarget(motion, r, jv_solver(with_hja, learned)), r, learned)
+        plain = costs(retarget(motion, r, jv_solver(base), learned=learned), r, learned)
+        hja = costs(retarget(motion, r, jv_solver(with_hja), learned=learned), r, learned)
         # the null space moves the posture at most at the joint speed limits: a few per cent here
         assert np.mean(hja["HJA_r"]) < 0.98 * np.mean(plain["HJA_r"]), base.scenario
         tracked = "fPOS" if base.scenario == "pose" else "fPOS_off"

@@ -9,7 +9,6 @@ import hlik
 from conftest import ROBOTS
 from hlik.criteria.manipulability import (
     arm_manipulability,
-    human_manipulability,
     man_cost,
     man_jacobian,
     man_residual,
@@ -19,6 +18,7 @@ from hlik.criteria.manipulability import (
     spd_distance,
 )
 from hlik.human.demo import demo_motion
+from hlik.human.manipulability import human_manipulability
 from hlik.robot.state import robot_state
 
 STEP = 1e-6

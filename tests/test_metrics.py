@@ -149,7 +149,7 @@ def test_score_curves_of_motion_follow_the_motion_and_still_average_to_the_score
     r = load_robot("dual_panda")
     learned = learn(r)
     motion = load_motion(cut_take, rate=100.0).crop(1.0, 4.0)
-    traj = retarget(motion, r, qp_solver(QPSettings(criteria=("SYN", "HJA_r")), learned))
+    traj = retarget(motion, r, qp_solver(QPSettings(criteria=("SYN", "HJA_r"))), learned=learned)
     ev = evaluate(traj, r, learned)
     raw, shown = ev.curves(), ev.curves(21)
     flips = lambda c: np.mean(np.abs(np.diff(c)) > 0.3)  # noqa: E731

@@ -60,7 +60,7 @@ def test_a_run_is_its_stages(cut_take):
     learned = learn(robot)
     where = placement_from_spec(robot.placement, robot, motion)
     settings = load_stack("ee_pose").with_criteria(["SYN"]).settings("qp")
-    traj = retarget(motion, robot, get_solver("qp", settings, learned), where)
+    traj = retarget(motion, robot, get_solver("qp", settings), where, learned)
     ev = evaluate(traj, robot, learned)
     np.testing.assert_array_equal(result.trajectory.q, traj.q)
     assert result.evaluation.m_hl == ev.m_hl and result.evaluation.m_f == ev.m_f
@@ -109,3 +109,58 @@ def test_shared_stage_outputs_are_used_not_recomputed(cut_take, monkeypatch):
     )
     np.testing.assert_array_equal(again.trajectory.q, first.trajectory.q)
     assert stages[0].startswith("retargeting to ARMAR-6") and stages[-1] == "evaluating the criteria"
+
+
+@pytest.mark.parametrize("solver", ["jv", "qp", "slsqp"])
+def test_a_solver_never_learns_given_a_built_problem(solver, tmp_path, monkeypatch):
+    """The learned pieces come with the problem: a solver with learning criteria runs with the
+    cache folder read-only, no corpus and ``learn`` itself broken."""
+    import hlik.criteria.learned
+    import hlik.problem.problem
+    from hlik.human.demo import demo_motion
+    from hlik.problem.problem import build_problem
+
+    robot = load_robot("armar6")
+    motion = demo_motion().crop(1.0, 1.2)
+    criteria = ("SYN", "EEA", "MAN_r")
+    problem = build_problem(motion, robot, learned=learn(robot), criteria=criteria)
+
+    def never(*args, **kwargs):
+        raise AssertionError("a solver learned")
+
+    monkeypatch.setattr(hlik.criteria.learned, "learn", never)
+    monkeypatch.setattr(hlik.problem.problem, "learn", never)
+    monkeypatch.setenv("HLIK_CORPUS", str(tmp_path / "no corpus"))
+    monkeypatch.setenv("HLIK_CACHE", str(tmp_path))
+    tmp_path.chmod(0o500)
+    try:
+        settings = load_stack("ee_pose").with_criteria(list(criteria)).settings(solver)
+        result = get_solver(solver, settings)(problem)
+    finally:
+        tmp_path.chmod(0o700)
+    assert result.q.shape == (motion.n_frames, robot.dof) and not result.diagnostics.failed.any()
+
+
+def test_the_problem_learns_once_and_only_for_criteria_that_learn(monkeypatch):
+    """build_problem learns where a criterion is built from learned pieces, not for plain tracking
+    or JM; a problem without them refuses such a criterion by name."""
+    import hlik.problem.problem
+    from hlik.errors import SettingsError
+    from hlik.human.demo import demo_motion
+    from hlik.problem.problem import build_problem
+
+    robot = load_robot("armar3")
+    motion = demo_motion().crop(1.0, 1.1)
+    calls: list[str] = []
+    real = hlik.problem.problem.learn
+    monkeypatch.setattr(hlik.problem.problem, "learn", lambda r, corpus=None: calls.append(r.name) or real(r))
+    assert build_problem(motion, robot, criteria=("HJA_r", "MJE")).learned is None and calls == []
+    assert build_problem(motion, robot, criteria=("HJA_r", "SYN")).learned is not None and calls == ["armar3"]
+    traj = retarget(
+        motion, robot, get_solver("qp", load_stack("ee_pose").with_criteria(["MIS"]).settings("qp"))
+    )
+    assert calls == ["armar3", "armar3"] and traj.n_frames == motion.n_frames
+    bare = build_problem(motion, robot)
+    settings = load_stack("ee_pose").with_criteria(["EEA"]).settings("qp")
+    with pytest.raises(SettingsError, match="criterion EEA is built from learned swivel"):
+        get_solver("qp", settings)(bare)

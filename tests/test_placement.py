@@ -130,7 +130,7 @@ def test_optimize_keeps_the_candidate_with_the_best_unified_metric():
     robot = load_robot("armar3")
     motion = demo_motion().crop(1.0, 2.0)
     learned = learn(robot)
-    solver = qp.qp_solver(qp.QPSettings(max_iter=5), learned)
+    solver = qp.qp_solver(qp.QPSettings(max_iter=5))
     best, tried = optimize_placement(motion, robot, solver, learned, frames=10)
     human = forward_kinematics(motion)
     assert [c.name for c in tried] == ["reach", "reach+1/3", "reach+2/3", "mapped", "shoulders"]

@@ -7,11 +7,12 @@ from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
-from hlik.criteria.eea import SwivelPredictor, eea_cost, eea_residual, swivel_angle, swivel_weight
+from hlik.criteria.eea import SwivelPredictor, eea_cost, eea_residual, swivel_weight
 from hlik.criteria.functional import rotation_vector
 from hlik.criteria.unified import logistic
 from hlik.human.demo import demo_motion
 from hlik.human.mmm_format import read_mmm, write_mmm
+from hlik.human.swivel import swivel_angle
 from hlik.problem.placement import Placement
 
 FAST = settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
@@ -173,7 +174,7 @@ def test_a_criterion_never_turns_a_reachable_hand_out_of_the_band(takes, robot, 
     else:
         module, settings = (
             slsqp,
-            slsqp.SLSQPSettings(criteria=(criterion,), criterion=40.0, orientation=1.0, **band),
+            slsqp.SLSQPSettings(criteria=(criterion,), criterion_cost=40.0, orientation_cost=1.0, **band),
         )
     q, _ = solve_problem(module.solve, r, motion, targets, placement, settings, learned=learn(r))
     pos, ori = hand_errors(r, q, targets)

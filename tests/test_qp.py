@@ -122,9 +122,9 @@ def test_criteria_improve_their_own_score(takes):
     learned = learn(r)
     from hlik.metrics import evaluate
 
-    plain = evaluate(retarget(motion, r, qp_solver(QPSettings(), learned)), r, learned)
+    plain = evaluate(retarget(motion, r, qp_solver(QPSettings()), learned=learned), r, learned)
     hja = evaluate(
-        retarget(motion, r, qp_solver(QPSettings(criteria=("HJA_r",), criterion_cost=0.3), learned)),
+        retarget(motion, r, qp_solver(QPSettings(criteria=("HJA_r",), criterion_cost=0.3)), learned=learned),
         r,
         learned,
     )
@@ -230,7 +230,7 @@ def test_the_trunk_term_holds_armar3_upright_and_is_absent_elsewhere(takes):
     lean = {}
     for cost in (0.0, 10.0):
         settings = QPSettings(criteria=("SYN", "HJA_r"), trunk_cost=cost)
-        traj = retarget(motion, r, qp_solver(settings, learn(r)))
+        traj = retarget(motion, r, qp_solver(settings), learned=learn(r))
         lean[cost] = np.median(np.abs(robot_posture(r, traj.q).lean))
     assert lean[10.0] < 0.7 * lean[0.0], lean  # measured 27.5 -> 15.7 deg
 

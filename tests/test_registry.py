@@ -126,7 +126,9 @@ def test_every_criterion_splits_into_parts_whose_mean_is_its_cost(robot, name):
 def test_evaluate_reports_the_cost_the_solvers_compute(robot):
     """Per frame, evaluate's h equals the criterion's cost on that frame's configuration and sample."""
     learned = learn(robot)
-    traj = retarget(demo_motion().crop(1.0, 1.3), robot, get_solver("qp", QPSettings(max_iter=3), learned))
+    traj = retarget(
+        demo_motion().crop(1.0, 1.3), robot, get_solver("qp", QPSettings(max_iter=3)), learned=learned
+    )
     h = costs(traj, robot, learned)
     problem = build_problem(traj.motion, robot, traj.placement)
     for k in (0, 1, 2, 5, traj.n_frames - 1):
@@ -180,12 +182,12 @@ def test_a_registered_criterion_runs_through_every_solver_and_evaluate(toy):
     for name in SOLVERS:
         if name == "jm":
             continue
-        plain = retarget(motion, r, get_solver(name, replace(settings[name], criteria=()), learned))
-        with_toy = retarget(motion, r, get_solver(name, settings[name], learned))
+        plain = retarget(motion, r, get_solver(name, replace(settings[name], criteria=())), learned=learned)
+        with_toy = retarget(motion, r, get_solver(name, settings[name]), learned=learned)
         ev, ev0 = evaluate(with_toy, r, learned), evaluate(plain, r, learned)
         assert "TOY" in ev.m and np.isfinite(ev.h["TOY"]).all(), name
         assert ev.m_hl == pytest.approx(ev0.m_hl, abs=0.2)  # weight 0: scored, not in m_hl's sum
         if name == "qp":  # where the null space allows it, the criterion acts
             assert np.mean(ev.h["TOY"]) < np.mean(ev0.h["TOY"]), name
-    assert isinstance(get_solver("jv", JVSettings(criteria=("TOY",)), learned), object)
+    assert isinstance(get_solver("jv", JVSettings(criteria=("TOY",))), object)
     assert isinstance(SLSQPSettings(criteria=("TOY",)), SLSQPSettings)

@@ -129,11 +129,22 @@ def test_a_chart_makes_the_hessian_the_identity_and_maps_the_joint_box():
         assert inside == bool(np.all(result <= 0))
 
     pose = SLSQPSettings()
-    assert (pose.position, pose.orientation, pose.velocity, pose.acceleration, pose.jerk) == (10, 9, 7, 2, 1)
-    assert pose.criterion == 10 and pose.position_gamma == 10 and dict(pose.gamma) == {}
+    assert (
+        pose.position_cost,
+        pose.orientation_cost,
+        pose.velocity_cost,
+        pose.acceleration_cost,
+        pose.jerk_cost,
+    ) == (10, 9, 7, 2, 1)
+    assert pose.criterion_cost == 10 and pose.position_gamma == 10 and dict(pose.gamma) == {}
     rel = SLSQPSettings.relative(("SYN",), max_eval=50)
-    assert (rel.relative_position, rel.relative_orientation, rel.position, rel.orientation) == (3, 15, 0, 0)
-    assert (rel.velocity, rel.acceleration, rel.jerk, rel.criterion) == (40, 10, 5, 100)
+    assert (
+        rel.relative_position_cost,
+        rel.relative_orientation_cost,
+        rel.position_cost,
+        rel.orientation_cost,
+    ) == (3, 15, 0, 0)
+    assert (rel.velocity_cost, rel.acceleration_cost, rel.jerk_cost, rel.criterion_cost) == (40, 10, 5, 100)
     assert rel.scenario == "relative" and rel.criteria == ("SYN",) and rel.max_eval == 50
     with pytest.raises(ValueError, match="gradients"):
         SLSQPSettings(gradients="exact")
@@ -345,7 +356,7 @@ def test_the_first_frame_reaches_its_targets_from_the_mapped_pose(cut_take):
     robot = load_robot("dual_panda")
     motion = load_motion(cut_take, rate=100.0).crop(0.0, 0.1)
     settings = replace(load_stack("ee_pose").settings("slsqp"), criteria=("SYN", "HJA_r"))
-    traj = retarget(motion, robot, get_solver("slsqp", settings, learn(robot)))
+    traj = retarget(motion, robot, get_solver("slsqp", settings), learned=learn(robot))
     assert np.all(position_error(traj.tcp_pos[:1], traj.targets.pos[:1]) < 0.02)
 
 
@@ -400,7 +411,7 @@ def test_the_band_keeps_reachable_hands_on_target_while_the_criteria_shape_the_a
 
     r = load_robot(name)
     motion, targets, placement = reachable_stretch(r, takes[0], 2.0, 2.3)
-    strong = SLSQPSettings(criteria=("SYN", "HJA_r"), criterion=40.0, orientation=1.0)
+    strong = SLSQPSettings(criteria=("SYN", "HJA_r"), criterion_cost=40.0, orientation_cost=1.0)
     banded = replace(strong, position_band=0.005, orientation_band=np.radians(3.0))
     errors = {}
     for label, settings in (("free", strong), ("band", banded)):
@@ -439,7 +450,7 @@ def test_the_trunk_loss_is_there_only_for_a_trunk_and_only_when_weighted():
     from hlik.criteria.joints import TrunkUpright
 
     def trunks(name, weight):
-        losses = build_losses(load_robot(name), SLSQPSettings(trunk=weight), None)
+        losses = build_losses(load_robot(name), SLSQPSettings(trunk_cost=weight), None)
         return [loss for loss in losses if isinstance(loss.term, TrunkUpright)]
 
     assert not trunks("armar3", 0.0) and not trunks("armar6", 5.0) and not trunks("dual_panda", 5.0)

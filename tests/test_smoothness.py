@@ -71,7 +71,7 @@ def test_mje_lowers_the_jerk_of_the_qp(name, takes):
     robot = load_robot(name)
     learned = learn(robot)
     motion = load_motion(takes[1], rate=100.0).crop(1.0, 2.0)  # Cut, 1 s
-    problem = build_problem(motion, robot, shoulder_placement(robot, forward_kinematics(motion)))
+    problem = build_problem(motion, robot, shoulder_placement(robot, forward_kinematics(motion)), learned)
     stack = load_stack("ee_pose")
 
     def jerk(criteria: tuple[str, ...], scale: float = 1.0) -> float:
@@ -79,7 +79,7 @@ def test_mje_lowers_the_jerk_of_the_qp(name, takes):
         settings = replace(
             settings, criterion_cost=scale * settings.criterion_cost, position_cost=10.0, orientation_cost=1.0
         )
-        traj = trajectory_of(problem, get_solver("qp", settings, learned)(problem), "qp")
+        traj = trajectory_of(problem, get_solver("qp", settings)(problem), "qp")
         return float(np.mean(costs(traj, robot, learned)["MJE"]))
 
     plain = jerk(())

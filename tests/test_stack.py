@@ -8,7 +8,7 @@ import pytest
 from typer.testing import CliRunner
 
 from hlik.cli import app
-from hlik.errors import HlikError
+from hlik.errors import HlikError, SettingsError
 from hlik.paths import tasks_dir
 from hlik.solvers.qp import QPSettings
 from hlik.solvers.stack_file import bundled_stacks, load_stack
@@ -97,7 +97,7 @@ def test_stack_slsqp_settings_are_the_papers():
 
     assert load_stack("paper_opt").settings("slsqp") == SLSQPSettings()  # the paper's OPT
     tuned = load_stack("ee_pose").settings("slsqp")
-    assert replace(tuned, criterion=10.0, max_eval=100, orientation=9.0) == SLSQPSettings()
+    assert replace(tuned, criterion_cost=10.0, max_eval=100, orientation_cost=9.0) == SLSQPSettings()
     relative = load_stack("relative_pose").settings("slsqp")
     assert relative == SLSQPSettings.relative()
 
@@ -144,3 +144,25 @@ def test_switches_and_collision_settings_read_from_a_stack_file(tmp_path):
     jv = stack.settings("jv")
     assert jv.self_collision is False and jv.collision_margin == 0.03
     assert load_stack("ee_pose").settings("jv").self_collision is True
+
+
+@pytest.mark.parametrize(
+    ("table", "key", "said"),
+    [
+        ("slsqp", "orientation", "now 'orientation_cost'"),
+        ("jv", "weight", "now 'criterion_cost'"),
+        ("qp", "velocity", "now 'velocity_cost'"),
+        ("qp", "position_csot", "did you mean 'position_cost'?"),
+    ],
+)
+def test_a_weight_by_its_old_or_a_misspelt_name_is_refused_with_the_name_to_use(tmp_path, table, key, said):
+    """One name per weight across the solvers (``<what>_cost``): a stack file written with a
+    solver's former name, or a typo, is refused naming the file, the table and the key to use."""
+    path = tmp_path / "old.toml"
+    path.write_text(f"[{table}]\n{key} = 1.0\n")
+    with pytest.raises(SettingsError) as err:
+        load_stack(path)
+    message = str(err.value)
+    assert (
+        message.startswith(str(path)) and f"unknown key {key!r} in [{table}]" in message and said in message
+    )

@@ -25,7 +25,7 @@ def test_mis_leaves_out_the_joints_the_mapping_holds(name):
     assert spanned.isdisjoint(HELD[name]) and len(spanned) == len(syn.idx) - len(HELD[name])
     assert syn.vel_basis.shape[1] == len(spanned) and syn.vel_scale.shape == (len(spanned),)
 
-    mis = MIS(robot, learn(robot))
+    mis = MIS(robot, learn(robot).synergies)
     q0 = np.clip(robot.home, robot.lower, robot.upper)
     eye = np.tile(np.eye(3), (2, 1, 1))
 

@@ -11,6 +11,7 @@ from types import ModuleType
 from typing import TYPE_CHECKING, Any
 
 from hlik.lazy import lazy_getattr
+from hlik.version import __version__ as __version__
 
 if TYPE_CHECKING:
     from hlik.errors import HlikError, MotionFormatError, RobotError, TrajectoryFormatError
@@ -65,7 +66,6 @@ __all__ = [
     "run",
     "write_recording",
 ]
-__version__ = "0.1.0"
 
 
 class _Package(ModuleType):

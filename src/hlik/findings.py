@@ -13,6 +13,7 @@ from hlik.criteria.functional import relative_errors
 from hlik.executable import BELOW_FLOOR, ControllerChecks
 from hlik.human.motion import HumanMotion
 from hlik.metrics import Evaluation
+from hlik.solvers import solver_spec
 from hlik.trajectory import Trajectory
 
 LAG = 0.05  # m: a hand this far off its target is reported as lagging
@@ -31,7 +32,7 @@ def run_warnings(traj: Trajectory, motion: HumanMotion, ev: Evaluation, rate: fl
     # jm maps the joint angles: by design it neither tracks the hands nor keeps the speed and
     # acceleration limits (the summary says how far off it is); warning on every jm run would bury
     # the real warnings. Torques, stops and the floor are warned about for every solver.
-    tracking = traj.solver != "jm"
+    tracking = solver_spec(traj.solver).tracks_targets
 
     def often(err: np.ndarray, limit: float) -> int:
         """Frames of ``err`` (T,) above ``limit``, if a tracking solver has more than OFF_SHARE; else 0."""

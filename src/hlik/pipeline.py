@@ -32,7 +32,7 @@ from hlik.problem.scale import scale_subject
 from hlik.retarget import retarget
 from hlik.robot.model import Robot, load_robot
 from hlik.robot.reachability import reachability_map
-from hlik.solvers import SOLVER_NAMES, get_solver
+from hlik.solvers import SOLVER_NAMES, SPECS, get_solver
 from hlik.solvers.stack_file import Stack, load_stack
 from hlik.trajectory import Trajectory
 
@@ -101,8 +101,9 @@ class RunSpec:
         if self.solver not in SOLVER_NAMES:
             raise HlikError(f"unknown solver {self.solver!r}; choose one of: {', '.join(SOLVER_NAMES)}")
         stack = self.task_stack()
-        if stack.criteria and self.solver == "jm":
-            raise HlikError("jm maps joints and cannot add criteria; choose --solver jv, qp or slsqp")
+        if stack.criteria and not SPECS[self.solver].takes_criteria:
+            takers = ", ".join(n for n, s in SPECS.items() if s.takes_criteria)
+            raise HlikError(f"{self.solver} maps joints and cannot add criteria; choose --solver {takers}")
         if self.gradients not in GRADIENTS:
             raise HlikError(f"unknown gradients {self.gradients!r}; choose analytic or fd")
         if self.gradients == "fd" and self.solver != "slsqp":
@@ -190,7 +191,7 @@ def place(
     if rule == "optimize":
         # the spec's own settings where it is a QP run; the stack's QP weights otherwise
         qp = spec if spec.solver == "qp" else replace(spec, solver="qp", gradients="analytic", settings={})
-        fast = get_solver("qp", solver_settings(qp, spec.task_stack()), learned)
+        fast = get_solver("qp", solver_settings(qp, spec.task_stack()))
         where, candidates = optimize_placement(motion, robot, fast, learned, scenario)
         tried = tuple(candidates)
     else:
@@ -200,7 +201,7 @@ def place(
 
 def solver_settings(spec: RunSpec, stack: Stack) -> object | None:
     """The solver's settings: the stack's, with the spec's gradients and overrides (None for jm)."""
-    if spec.solver == "jm":
+    if SPECS[spec.solver].settings is None:
         return None
     settings = stack.settings(spec.solver)
     if spec.solver == "slsqp":
@@ -246,7 +247,7 @@ def run(
     step = (lambda k: progress(stage, k + 1, motion.n_frames)) if progress else None
     _say(progress, stage, 0, motion.n_frames)
     wall, cpu = time.perf_counter(), time.process_time()
-    traj = retarget(motion, robot, get_solver(spec.solver, settings, learned, step), placement)
+    traj = retarget(motion, robot, get_solver(spec.solver, settings, step), placement, learned)
     wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
     _say(progress, "evaluating the criteria")
     ev = evaluate(traj, robot, learned, scenario=scenario, metric=metric)

@@ -63,7 +63,7 @@ def optimize_placement(
     short = motion.resample(max(frames - 1, 1) / motion.duration) if motion.n_frames > frames else motion
     candidates = []
     for name, placement in named:
-        traj = retarget(short, robot, solver, placement)
+        traj = retarget(short, robot, solver, placement, learned)
         candidates.append(Candidate(name, placement, evaluate(traj, robot, learned, scenario).m_hl_f))
     best = max(candidates, key=lambda c: c.m_hl_f)
     return Placement(best.placement.rotation, best.placement.translation, "optimize"), candidates

@@ -31,10 +31,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from hlik.criteria.angles import joint_difference
-from hlik.criteria.eea import swivel_angle
 from hlik.fk import site_poses
 from hlik.human.kinematics import arm_length as arm_lengths
 from hlik.human.kinematics import forward_kinematics, shoulder_axes
+from hlik.human.swivel import swivel_angle
 from hlik.robot.model import Robot
 from hlik.trajectory import Trajectory
 

@@ -7,6 +7,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from hlik.criteria.learned import Learned
 from hlik.errors import HlikError
 from hlik.human.fit import keypoint_markers
 from hlik.human.motion import HumanMotion
@@ -19,12 +20,18 @@ from hlik.trajectory import Trajectory
 
 
 def retarget(
-    motion: HumanMotion, robot: Robot, solver: str | Solver = "jm", placement: Placement | None = None
+    motion: HumanMotion,
+    robot: Robot,
+    solver: str | Solver = "jm",
+    placement: Placement | None = None,
+    learned: Learned | None = None,
 ) -> Trajectory:
     """Retarget ``motion`` to ``robot`` with ``solver``: a name in ``SOLVERS``, or a :class:`Solver`.
 
-    The problem (human kinematics, placement, hand targets, human reference) is built once and
-    handed to the solver; ``placement`` defaults to the robot's rule (``Robot.placement``).
+    The problem (human kinematics, placement, hand targets, human reference, the learned pieces
+    of the solver's ``criteria``) is built once and handed to the solver; ``placement`` defaults
+    to the robot's rule (``Robot.placement``), ``learned`` to the pieces learned from the default
+    corpus where a criterion needs them.
     A custom solver may also return bare joint angles (T, n); its diagnostics are then unknown
     (one pass per frame, nothing failed).
 
@@ -35,7 +42,8 @@ def retarget(
         if solver not in SOLVERS:
             raise HlikError(f"unknown solver {solver!r}; choose one of: {', '.join(SOLVERS)}")
         solver = get_solver(solver)
-    problem = build_problem(motion, robot, placement)
+    criteria = tuple(getattr(solver, "criteria", ()))
+    problem = build_problem(motion, robot, placement, learned, criteria)
     return trajectory_of(problem, solver(problem), getattr(solver, "name", type(solver).__name__))
 
 

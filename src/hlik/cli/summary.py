@@ -66,6 +66,7 @@ def run_summary(title: str, traj, motion, solve_time: float, rrd: Path, npz: Pat
 
     from hlik.criteria.functional import relative_errors
     from hlik.findings import LAG, lag_spans
+    from hlik.solvers import solver_spec
 
     fpos, fori = ev.fpos, ev.fori
     table = Table(show_header=False, box=None, title=f"{title} -> {Path(traj.robot).stem} ({traj.solver})")
@@ -103,8 +104,8 @@ def run_summary(title: str, traj, motion, solve_time: float, rrd: Path, npz: Pat
     lag = lag_spans(fpos, traj.times) if ev.scenario == "pose" else ""  # relative: no hand targets
     if lag:
         reason = (
-            "jm maps the joints and does not track the hands"
-            if traj.solver == "jm"
+            f"{traj.solver} maps the joints and does not track the hands"
+            if not solver_spec(traj.solver).tracks_targets
             else "out of reach, too fast for the speed limits, or outweighed by the criteria"
         )
         table.add_row("lagging", f"hands > {100 * LAG:.0f} cm off their targets ({reason}): {lag}")

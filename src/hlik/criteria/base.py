@@ -187,7 +187,8 @@ class Criterion(Term):
     ``gamma`` is Table II's scaling weight in the solvers' costs, ``x0`` Table III's logistic
     mid-point of Eq. 1 and ``weight`` Table III's hierarchical weight of Eq. 2 (0 for the functional
     criteria, whose x0 depends on the scenario: :data:`hlik.criteria.unified.FUNCTIONAL_X0`).
-    Instances are made per robot: ``Criterion(robot, learned)``.
+    Instances are made per robot: ``Criterion(robot, piece)``, ``piece`` the attribute of
+    :class:`~hlik.criteria.learned.Learned` named by :attr:`learned` (None for most criteria).
     """
 
     gamma: ClassVar[float] = 1.0
@@ -207,9 +208,12 @@ class Criterion(Term):
     # none (its history is itself, h = 0 whatever q), so the solvers leave the criterion out there
     # rather than pull the first pose toward the pose they start from.
     motion: ClassVar[bool] = False
+    # The piece of :class:`~hlik.criteria.learned.Learned` the criterion is built from (``synergies``,
+    # ``swivel``, ``scale``), fitted on a human corpus; None: it learns nothing.
+    learned: ClassVar[str | None] = None
 
-    def __init__(self, robot: object = None, learned: object = None):
-        """Criteria that need neither the robot nor the learned pieces take them and ignore them."""
+    def __init__(self, robot: object = None, piece: object = None):
+        """Criteria that need neither the robot nor a learned piece take them and ignore them."""
 
 
 @functools.cache

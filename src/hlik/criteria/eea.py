@@ -35,31 +35,24 @@ is the signed, wrapped version of it (formulas.md §9).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
 from hlik.criteria.angles import wrap
 from hlik.criteria.base import Criterion
+from hlik.human.swivel import _SIDE_SIGN, TWO_PI, swivel_angle, swivel_parts
 from hlik.robot.state import RobotState
 
-if TYPE_CHECKING:
-    from hlik.criteria.learned import Learned
-
-TWO_PI = 2.0 * np.pi
-_SINGULAR = 1e-6  # relative size below which the swivel angle is undefined
 # sine of the angle (upper arm to the shoulder -> wrist axis; that axis to the vertical) at which
 # swivel_weight is 1/2: about 6 deg, where 1 mm of elbow motion turns Psi by ~0.03 rad
 _FADE = 0.1
 EULER = "xzy"  # extrinsic sequence of the hand orientation angles (module docstring)
-_UP = np.array([0.0, 0.0, 1.0])
-_CROSS_UP = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 0.0]])  # v @ _CROSS_UP = v x up
 _MIRROR = np.array([-1.0, 1.0, 1.0])  # x -> -x
 _ARM_MIRROR = np.stack([_MIRROR, np.ones(3)])  # (2, 3): the left arm mirrored, the right as it is
 # the left hand's D R diag(1, -1, 1) (_arm_frame) as an elementwise sign pattern
 _HAND_MIRROR = np.stack([np.outer(_MIRROR, [1.0, -1.0, 1.0]), np.ones((3, 3))])
-_SIDE_SIGN = np.array([-1.0, 1.0])  # left Ψ = -Ψ_raw, right Ψ = Ψ_raw
 # bound on each arm's |dΨ/dq| (rad/rad) and on |dh_EEA/dq| (rad^-1, the same over π): the paper caps
 # the elevation gradients (Sec. IV-A); they grow without bound near the singularities
 SWIVEL_CAP = 20.0
@@ -94,37 +87,6 @@ FEATURES = (
 )
 
 
-def _unit(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """v / |v| and |v| over the last axis (NaN for 0: call within np.errstate)."""
-    norm = np.sqrt(np.einsum("...i,...i->...", v, v))
-    return v / norm[..., None], norm
-
-
-def _swivel_parts(shoulder: np.ndarray, elbow: np.ndarray, wrist: np.ndarray):
-    """Raw (unmirrored) Ψ and everything its gradient needs; arrays (..., 2[, 3])."""
-    a = np.asarray(wrist, float) - np.asarray(shoulder, float)
-    b = np.asarray(elbow, float) - np.asarray(shoulder, float)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        n, a_norm = _unit(a)
-        c = n[..., 2]  # cos of the axis' angle to the vertical
-        r, sigma = _unit(_UP - c[..., None] * n)
-        t = (n @ _CROSS_UP) / sigma[..., None]  # n x r, as n x n = 0
-        x = np.einsum("...i,...i->...", b, r)
-        y = np.einsum("...i,...i->...", b, t)
-        z = np.einsum("...i,...i->...", b, n)
-        eps2 = x**2 + y**2  # squared distance of the elbow from the shoulder -> wrist axis
-        scale = a_norm + np.sqrt(np.einsum("...i,...i->...", b, b))
-        singular = (sigma < _SINGULAR) | (np.sqrt(eps2) < _SINGULAR * scale) | ~(scale > 0)
-        psi_raw = np.where(singular, np.nan, np.arctan2(y, x))
-    return psi_raw, singular, n, r, t, x, y, z, eps2, c, sigma, a_norm
-
-
-def swivel_angle(shoulder: np.ndarray, elbow: np.ndarray, wrist: np.ndarray) -> np.ndarray:
-    """Ψ (..., 2) in [0, 2π) from (..., 2, 3) joint centres (arm 0 = left, mirrored); NaN if singular."""
-    psi_raw = _swivel_parts(shoulder, elbow, wrist)[0]
-    return (_SIDE_SIGN * psi_raw) % TWO_PI
-
-
 def swivel_weight(shoulder: np.ndarray, elbow: np.ndarray, wrist: np.ndarray) -> np.ndarray:
     """How well Ψ is defined, (..., 2) in [0, 1]: 0 at the singularities, 1 away from them.
 
@@ -139,12 +101,12 @@ def swivel_angle_and_weight(
     shoulder: np.ndarray, elbow: np.ndarray, wrist: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
     """:func:`swivel_angle` and :func:`swivel_weight` (each (..., 2)) from one pass."""
-    parts = _swivel_parts(shoulder, elbow, wrist)
+    parts = swivel_parts(shoulder, elbow, wrist)
     return _angle_and_weight(parts, np.asarray(elbow, float) - np.asarray(shoulder, float))
 
 
 def _angle_and_weight(parts: tuple, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Ψ and the weight from :func:`_swivel_parts` and the upper arm ``b`` (..., 2, 3)."""
+    """Ψ and the weight from :func:`~hlik.human.swivel.swivel_parts` and the upper arm ``b`` (..., 2, 3)."""
     psi_raw, singular, *_, eps2, _, sigma, _ = parts
     with np.errstate(invalid="ignore", divide="ignore"):
         s_elbow2 = eps2 / np.einsum("...i,...i->...", b, b)
@@ -162,11 +124,11 @@ def swivel_gradient(
     atan2(Y, X); then dΨ/db = (X t - Y r) / (X² + Y²) and, as n turns with a,
     dΨ/da = ((n·ẑ)/‖ẑ - (n·ẑ) n‖ t + Z (Y r - X t) / (X² + Y²)) / ‖a‖.
     """
-    return _gradient_from_parts(_swivel_parts(shoulder, elbow, wrist))
+    return _gradient_from_parts(swivel_parts(shoulder, elbow, wrist))
 
 
 def _gradient_from_parts(parts: tuple) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """:func:`swivel_gradient` from :func:`_swivel_parts`."""
+    """:func:`swivel_gradient` from :func:`~hlik.human.swivel.swivel_parts`."""
     _, singular, n, r, t, x, y, z, eps2, c, sigma, a_norm = parts
     with np.errstate(invalid="ignore", divide="ignore"):
         g_b = (x[..., None] * t - y[..., None] * r) / eps2[..., None]
@@ -202,23 +164,6 @@ def _capped(jac: np.ndarray, cap: float) -> np.ndarray:
     """Each row of ``jac`` (..., n) scaled down to norm ``cap`` if it is longer."""
     norm = np.linalg.norm(jac, axis=-1, keepdims=True)
     return jac * np.minimum(1.0, cap / np.maximum(norm, 1e-300))
-
-
-def forward_fill(psi: np.ndarray) -> np.ndarray:
-    """``psi`` (F, ...) with every NaN replaced by the last valid value along axis 0.
-
-    Leading NaNs take the first valid value; columns without any valid value stay NaN.
-    """
-    psi = np.array(psi, dtype=float)
-    flat = psi.reshape(len(psi), -1)
-    for col in flat.T:
-        valid = np.flatnonzero(~np.isnan(col))
-        if valid.size == 0 or valid.size == len(col):
-            continue
-        src = np.maximum.accumulate(np.where(np.isnan(col), 0, np.arange(len(col))))
-        src[: valid[0]] = valid[0]
-        col[:] = col[src]
-    return flat.reshape(psi.shape)
 
 
 # --- the human-like prediction Ψ_human -------------------------------------------------------
@@ -379,7 +324,7 @@ def prediction_and_jacobian(predictor: SwivelPredictor, state: RobotState) -> tu
 
 def _weight_gradient(parts: tuple, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """d weight / da and d weight / db (each (..., 2, 3)) of :func:`swivel_weight`, a the shoulder ->
-    wrist and b the shoulder -> elbow vector, from :func:`_swivel_parts`.
+    wrist and b the shoulder -> elbow vector, from :func:`~hlik.human.swivel.swivel_parts`.
 
     The weight is ``F(u) G(sigma)`` with u = 1 - z²/|b|² the squared sine of the upper arm to the
     axis (z = b . n) and sigma = sqrt(1 - c²) the sine of the axis to the vertical (c = n . up), so
@@ -411,7 +356,7 @@ def swivel_parts_and_jacobians(state: RobotState) -> tuple[np.ndarray, np.ndarra
     if state.jac is None:
         raise ValueError("swivel_parts_and_jacobians needs a RobotState with Jacobians (jacobians=True)")
     b = state.elbow - state.shoulder
-    parts = _swivel_parts(state.shoulder, state.elbow, state.wrist)
+    parts = swivel_parts(state.shoulder, state.elbow, state.wrist)
     psi, w = _angle_and_weight(parts, b)
     d = np.empty((*psi.shape, 2, 2, 3))  # (F, 2, [Ψ, weight], [a, b], 3)
     _, d[..., 0, 1, :], d[..., 0, 0, :] = _gradient_from_parts(parts)
@@ -464,8 +409,10 @@ class EEA(Criterion):
     exact_jacobian = False  # jacobian() holds the prediction and the weight fixed; exact() does not
     needs_sample, parts, part_form = False, 2, "norm"
 
-    def __init__(self, robot: object, learned: Learned):
-        self.swivel = learned.swivel
+    learned = "swivel"
+
+    def __init__(self, robot: object, swivel: SwivelPredictor):
+        self.swivel = swivel
 
     def target(self, state: RobotState, sample: object, psi: np.ndarray) -> np.ndarray:
         """(F, 2) the Ψ each arm is drawn to."""

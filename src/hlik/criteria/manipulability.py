@@ -14,22 +14,18 @@ Matrices are in metres squared per radian squared; Jacobians in the robot base f
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import mujoco
 import numpy as np
 
 from hlik.criteria.angles import cross
 from hlik.criteria.base import Criterion, block_norm_gradient
-from hlik.human.kinematics import human_model, qpos_trajectory
-from hlik.human.motion import ARM_JOINTS, HumanMotion
+from hlik.human.kinematics import human_model
+from hlik.human.manipulability import human_tcp_jacobians, velocity_manipulability
+from hlik.human.motion import ARM_JOINTS
 from hlik.robot.model import SIDES, SITES, Robot
 from hlik.robot.state import RobotState
 
 SITE = SITES.index("manipulability")
-
-if TYPE_CHECKING:
-    from hlik.criteria.learned import Learned
 
 _SQRT2 = np.sqrt(2.0)
 _ROWS, _COLS = np.array([0, 1, 2, 0, 1, 0]), np.array([0, 1, 2, 1, 2, 2])
@@ -37,11 +33,6 @@ _WEIGHTS = np.array([1.0, 1.0, 1.0, _SQRT2, _SQRT2, _SQRT2])
 
 
 # Symmetric positive definite matrices.
-
-
-def velocity_manipulability(jac_pos: np.ndarray) -> np.ndarray:
-    """(..., 3, 3) velocity manipulability ``J J^T`` of a (..., 3, k) position Jacobian."""
-    return jac_pos @ np.swapaxes(jac_pos, -1, -2)
 
 
 def mandel(m: np.ndarray) -> np.ndarray:
@@ -189,33 +180,6 @@ def man_cost(residual: np.ndarray) -> np.ndarray:
 # Human manipulability and the scale factor.
 
 
-def _human_tcp_jacobians(model: mujoco.MjModel, qpos: np.ndarray) -> np.ndarray:
-    """(T, 2, 3, 7) TCP position Jacobians of the MMM model over each arm's :data:`ARM_JOINTS`."""
-    data = mujoco.MjData(model)
-    sites = [model.site(f"{s}_tcp").id for s in SIDES]
-    dofs = [model.jnt_dofadr[[model.joint(j).id for j in ARM_JOINTS[s]]] for s in SIDES]
-    jac = np.empty((len(qpos), 2, 3, 7))
-    jac_pos = np.empty((3, model.nv))
-    for t, q in enumerate(qpos):
-        data.qpos[:] = q
-        mujoco.mj_kinematics(model, data)
-        mujoco.mj_comPos(model, data)
-        for i, site in enumerate(sites):
-            mujoco.mj_jacSite(model, data, jac_pos, None, site)
-            jac[t, i] = jac_pos[:, dofs[i]]
-    return jac
-
-
-def human_manipulability(motion: HumanMotion) -> np.ndarray:
-    """(T, 2, 3, 3) TCP velocity manipulability of the normalised (1 m) MMM model, world frame, m².
-
-    Only each arm's 7 :data:`~hlik.motion.ARM_JOINTS` count. In the robot base frame with
-    rotation R (world <- robot) it is ``R^T M R``.
-    """
-    model = human_model(1.0)
-    return velocity_manipulability(_human_tcp_jacobians(model, qpos_trajectory(model, motion)))
-
-
 def _robot_max_det(robot: Robot, rng: np.random.Generator, n: int) -> float:
     """Largest ``det M_R`` over both arms at n configurations uniform within the joint limits."""
     lower = np.where(np.isinf(robot.lower), -np.pi, robot.lower)
@@ -247,7 +211,7 @@ def _human_max_det(rng: np.random.Generator, n: int) -> float:
         lo, hi = model.jnt_range[ids].T
         qpos[:, model.jnt_qposadr[ids]] = rng.uniform(lo, hi, size=(n, len(ids)))
     # The arms are independent chains, so one sample of both arms is one sample of each.
-    return float(np.linalg.det(velocity_manipulability(_human_tcp_jacobians(model, qpos))).max())
+    return float(np.linalg.det(velocity_manipulability(human_tcp_jacobians(model, qpos))).max())
 
 
 def scale_factor(robot: Robot, n: int = 20000, seed: int = 0) -> float:
@@ -270,10 +234,10 @@ class MAN_r(Criterion):  # noqa: N801 - the paper's name
 
     name, gamma, x0, weight = "MAN_r", 0.5, 1.9, 1 / 5
     sites = value_sites = (SITE,)
-    parts, part_form = 2, "norm"
+    parts, part_form, learned = 2, "norm", "scale"
 
-    def __init__(self, robot: Robot, learned: Learned):
-        self.robot, self.scale = robot, learned.scale
+    def __init__(self, robot: Robot, scale: float):
+        self.robot, self.scale = robot, scale
 
     def residual(self, state, sample):
         return man_residual(self.robot, state, sample.manip, self.scale).reshape(len(state.q), 12)

@@ -8,7 +8,7 @@ code.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Iterable
 
 from hlik.criteria.base import Criterion
 from hlik.criteria.eea import EEA, EEA_r
@@ -64,10 +64,27 @@ def criterion_class(name: str) -> type[Criterion]:
         raise UnknownNameError(f"unknown criterion {name!r}; choose from: {known}") from None
 
 
-def criterion(name: str, robot: object, learned: object) -> Criterion:
-    """A new instance of criterion ``name`` for ``robot`` with its learned pieces."""
-    make: Callable[..., Criterion] = criterion_class(name)
-    return make(robot, learned)
+def criterion(name: str, robot: object, learned: object | None = None) -> Criterion:
+    """A new instance of criterion ``name`` for ``robot``, built from its piece of ``learned``
+    (:class:`~hlik.criteria.learned.Learned`; :attr:`Criterion.learned` names it).
+
+    Raises:
+        SettingsError: the criterion learns from human motion and ``learned`` is None.
+    """
+    make: type[Criterion] = criterion_class(name)
+    if make.learned is None:
+        return make(robot)
+    if learned is None:
+        raise SettingsError(
+            f"criterion {name} is built from learned {make.learned} (hlik.criteria.learned.learn); "
+            "none were given"
+        )
+    return make(robot, getattr(learned, make.learned))
+
+
+def learns(names: Iterable[str]) -> bool:
+    """True if any of the criteria ``names`` is built from a learned piece."""
+    return any(criterion_class(n).learned is not None for n in names)
 
 
 for _cls in (

@@ -8,7 +8,6 @@ velocity scaled by its standard deviation. Fitting lives in :mod:`hlik.criteria.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy.signal import savgol_filter
@@ -17,9 +16,6 @@ from sklearn.decomposition import PCA
 from hlik.criteria.angles import joint_difference
 from hlik.criteria.base import Criterion, block_norm_cost, block_norm_gradient
 from hlik.robot.model import Robot
-
-if TYPE_CHECKING:
-    from hlik.criteria.learned import Learned
 
 N_COMPONENTS = 5
 SAVGOL_WINDOW, SAVGOL_ORDER = 21, 3  # paper Sec. III-B, at 100 Hz
@@ -130,10 +126,10 @@ class SYN(Criterion):
     """SYN: the part of the pose outside the robot's postural synergy subspace (e (F, d), rad)."""
 
     name, gamma, x0, weight = "SYN", 6.0, 0.12, 1 / 15
-    needs_sample, sites = False, ()
+    needs_sample, sites, learned = False, (), "synergies"
 
-    def __init__(self, robot: Robot, learned: Learned):
-        self.syn = learned.synergies
+    def __init__(self, robot: Robot, synergies: Synergies):
+        self.syn = synergies
         self.constant_jacobian = self.syn.syn_jacobian(robot.dof)
 
     def residual(self, state, sample):
@@ -144,10 +140,10 @@ class SYN_r(Criterion):  # noqa: N801 - the paper's name
     """SYN^r: the pose minus the mapped human pose, in synergy coordinates (e (F, k), rad)."""
 
     name, gamma, x0, weight = "SYN_r", 2.0, 0.47, 1 / 30
-    sites = ()
+    sites, learned = (), "synergies"
 
-    def __init__(self, robot: Robot, learned: Learned):
-        self.syn = learned.synergies
+    def __init__(self, robot: Robot, synergies: Synergies):
+        self.syn = synergies
         self.constant_jacobian = self.syn.syn_r_jacobian(robot.dof)
 
     def residual(self, state, sample):
@@ -182,8 +178,10 @@ class MIS(Criterion):
     sites, motion, part_form = (), True, "norm"  # the stand-in's
     solver_form = "velocity penalty: (I - U^T U) e, its squares (QP) or RMS / 10 (SLSQP), formulas.md §9"
 
-    def __init__(self, robot: Robot, learned: Learned):
-        syn = learned.synergies
+    learned = "synergies"
+
+    def __init__(self, robot: Robot, synergies: Synergies):
+        syn = synergies
         self.syn, self.n = syn, robot.dof
         self.idx, self.unlimited = syn.vel_idx, syn.unlimited[syn.moving]
         self.outside = np.eye(len(self.idx)) - syn.vel_basis.T @ syn.vel_basis

@@ -2,8 +2,12 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
+from pathlib import Path
 
+from hlik.criteria import registry
+from hlik.criteria.learned import Learned, learn
 from hlik.human.kinematics import HumanKinematics, forward_kinematics
 from hlik.human.motion import HumanMotion, frame_period
 from hlik.problem.placement import Placement, placement_from_spec
@@ -24,6 +28,8 @@ class Problem:
         targets: The human hand poses as TCP targets, robot base frame.
         reference: The human reference of the reference criteria (mapped pose, Ψ, manipulability).
         dt: Median frame period, s.
+        learned: The pieces the criteria learn from human motion (synergies, Ψ regressor,
+            λ_R); None where no criterion of the run needs them.
     """
 
     robot: Robot
@@ -33,15 +39,30 @@ class Problem:
     targets: HandTargets
     reference: HumanReference
     dt: float
+    learned: Learned | None = None
 
     @property
     def n_frames(self) -> int:
         return self.motion.n_frames
 
 
-def build_problem(motion: HumanMotion, robot: Robot, placement: Placement | None = None) -> Problem:
+def build_problem(
+    motion: HumanMotion,
+    robot: Robot,
+    placement: Placement | None = None,
+    learned: Learned | None = None,
+    criteria: Sequence[str] = (),
+    corpus: Path | None = None,
+) -> Problem:
     """The problem of ``motion`` on ``robot``, placed at ``placement`` (default: the robot's own
-    rule, ``Robot.placement``: reachability as the paper, or the joint mapping's fit)."""
+    rule, ``Robot.placement``: reachability as the paper, or the joint mapping's fit).
+
+    ``learned``: the learned pieces; if None, they are learned here from ``corpus``
+    (:func:`~hlik.criteria.learned.learn`, cached on disk) when one of ``criteria`` needs them,
+    so that a solver never reads a corpus or the cache.
+    """
+    if learned is None and registry.learns(criteria):
+        learned = learn(robot, corpus)
     human = forward_kinematics(motion)
     placement = placement or placement_from_spec(robot.placement, robot, motion, human)
     return Problem(
@@ -52,4 +73,5 @@ def build_problem(motion: HumanMotion, robot: Robot, placement: Placement | None
         targets=hand_targets(human, placement),
         reference=human_reference(robot, motion, placement, human),
         dt=frame_period(motion.times),
+        learned=learned,
     )

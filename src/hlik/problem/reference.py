@@ -13,10 +13,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from hlik.criteria.base import Sample
-from hlik.criteria.eea import forward_fill, swivel_angle
-from hlik.criteria.manipulability import human_manipulability
 from hlik.human.kinematics import HumanKinematics, forward_kinematics
+from hlik.human.manipulability import human_manipulability
 from hlik.human.motion import HumanMotion
+from hlik.human.swivel import forward_fill, swivel_angle
 from hlik.problem.placement import Placement
 from hlik.problem.targets import HandTargets
 from hlik.robot.model import Robot, mapped_configuration

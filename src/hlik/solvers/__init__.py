@@ -19,24 +19,46 @@ from types import MappingProxyType
 from hlik.errors import UnknownNameError
 from hlik.solvers import jm, jv, qp, slsqp
 from hlik.solvers.base import Diagnostics, Solver, SolverResult
+from hlik.solvers.settings import SolverSettings, SolverSpec
 
-# name -> factory(settings, learned, progress); a new solver adds one line here.
-SOLVERS: Mapping[str, Callable[..., Solver]] = MappingProxyType(
-    {"jm": jm.jm_solver, "jv": jv.jv_solver, "qp": qp.qp_solver, "slsqp": slsqp.slsqp_solver}
+# The solvers by name; a new solver adds one line here.
+SPECS: Mapping[str, SolverSpec] = MappingProxyType(
+    {
+        s.name: s
+        for s in (
+            SolverSpec("jm", jm.jm_solver, None, takes_criteria=False, tracks_targets=False),
+            SolverSpec("jv", jv.jv_solver, jv.JVSettings),
+            SolverSpec("qp", qp.qp_solver, qp.QPSettings),
+            SolverSpec("slsqp", slsqp.slsqp_solver, slsqp.SLSQPSettings),
+        )
+    }
 )
+# name -> factory(settings, progress)
+SOLVERS: Mapping[str, Callable[..., Solver]] = MappingProxyType({n: s.factory for n, s in SPECS.items()})
 SOLVER_NAMES = tuple(SOLVERS)
 
 
-def get_solver(
-    name: str,
-    settings: object | None = None,
-    learned: object | None = None,
-    progress: Callable[[int], None] | None = None,
-) -> Solver:
-    """The solver called ``name`` with ``settings`` (its settings class; default: the defaults).
+def solver_spec(name: str) -> SolverSpec:
+    """The :class:`SolverSpec` of solver ``name``; a solver hlik does not know by name (a user's
+    function, a mink stack) is one that tracks the targets and takes no criteria of hlik's.
 
-    ``learned`` supplies the learned criteria (learned on demand otherwise); ``progress(k)`` is
-    called after each frame ``k``.
+    Use it for what a solver can do, not its name."""
+    return SPECS.get(name) or SolverSpec(name, _unknown(name), None, takes_criteria=False)
+
+
+def _unknown(name: str) -> Callable[..., Solver]:
+    def factory(*args: object, **kwargs: object) -> Solver:
+        raise UnknownNameError(f"unknown solver {name!r}; choose one of: {', '.join(SOLVERS)}")
+
+    return factory
+
+
+def get_solver(
+    name: str, settings: object | None = None, progress: Callable[[int], None] | None = None
+) -> Solver:
+    """The solver called ``name`` with ``settings`` (its settings class; default: the defaults);
+    ``progress(k)`` is called after each frame ``k``. The learned pieces of its criteria come with
+    the problem (:func:`hlik.problem.build_problem`).
 
     Raises:
         UnknownNameError: unknown name.
@@ -44,11 +66,18 @@ def get_solver(
     if name not in SOLVERS:
         raise UnknownNameError(f"unknown solver {name!r}; choose one of: {', '.join(SOLVERS)}")
     factory = SOLVERS[name]
-    return (
-        factory(settings, learned, progress)
-        if settings is not None
-        else factory(learned=learned, progress=progress)
-    )
+    return factory(settings, progress) if settings is not None else factory(progress=progress)
 
 
-__all__ = ["SOLVERS", "SOLVER_NAMES", "Diagnostics", "Solver", "SolverResult", "get_solver"]
+__all__ = [
+    "SOLVERS",
+    "SOLVER_NAMES",
+    "SPECS",
+    "Diagnostics",
+    "Solver",
+    "SolverResult",
+    "SolverSettings",
+    "SolverSpec",
+    "get_solver",
+    "solver_spec",
+]

@@ -74,24 +74,28 @@ class Solver(Protocol):
 
 @dataclass(frozen=True)
 class ConfiguredSolver:
-    """A solver module's ``solve(problem, settings, learned, progress)`` with its arguments bound.
+    """A solver module's ``solve(problem, settings, progress)`` with its arguments bound. The
+    learned pieces its criteria are built from come with the problem (:attr:`Problem.learned`).
 
     Attributes:
         name: Solver name (``jv``, ``qp``, ``slsqp``), recorded in the trajectory.
         solve: The module's ``solve`` function.
         settings: Its settings object.
-        learned: Learned criteria pieces (learned on demand when None).
         progress: Called with each frame index as it is solved.
     """
 
     name: str
     solve: Callable[..., SolverResult]
     settings: object
-    learned: object = None
     progress: Callable[[int], None] | None = None
 
+    @property
+    def criteria(self) -> tuple[str, ...]:
+        """The criteria the solver adds (what the problem must have learned pieces for)."""
+        return tuple(getattr(self.settings, "criteria", ()))
+
     def __call__(self, problem: Problem) -> SolverResult:
-        return self.solve(problem, self.settings, self.learned, self.progress)
+        return self.solve(problem, self.settings, self.progress)
 
 
 def check_settings(

@@ -27,8 +27,6 @@ class JMSolver:
         return SolverResult(q, Diagnostics.trivial(problem.n_frames, time.perf_counter() - start))
 
 
-def jm_solver(
-    settings: object = None, learned: object = None, progress: Callable[[int], None] | None = None
-) -> JMSolver:
+def jm_solver(settings: object = None, progress: Callable[[int], None] | None = None) -> JMSolver:
     """The JM solver (it has no settings; the arguments keep the factories alike)."""
     return JMSolver()

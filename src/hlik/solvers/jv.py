@@ -25,8 +25,8 @@ depends on Chan & Dubey's weights, which flip as the cut step turns back, and cy
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field, replace
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, replace
 
 import mujoco
 import numpy as np
@@ -34,7 +34,7 @@ import numpy as np
 from hlik.criteria import registry, unified
 from hlik.criteria.base import Sample, Term
 from hlik.criteria.functional import fORI, fORI_off, target_terms
-from hlik.criteria.learned import Learned, learn
+from hlik.criteria.learned import Learned
 from hlik.problem.problem import Problem
 from hlik.robot.collision import CollisionPairs, DistanceBounds, collision_pairs
 from hlik.robot.model import Robot
@@ -50,12 +50,13 @@ from hlik.solvers.frames import (
     iterate,
     track,
 )
-from hlik.solvers.limits import LimitSettings, MotionLimits
+from hlik.solvers.limits import MotionLimits
 from hlik.solvers.qp_backend import solve_qp
+from hlik.solvers.settings import SolverSettings
 
 
 @dataclass(frozen=True)
-class JVSettings(LimitSettings):
+class JVSettings(SolverSettings):
     """The controller's gains, the stopping rule and the limits (:class:`LimitSettings`).
 
     Attributes:
@@ -64,9 +65,10 @@ class JVSettings(LimitSettings):
         scenario: ``pose`` tracks both TCP poses; ``relative`` tracks the relative pose of the hands
             (paper Eqs. 3-4) and the TCP poses only at the first frame (Sec. V-B), as the QP does.
         gamma: Criterion name -> scaling weight gamma_i (Table II; 1 where absent).
-        weight: w_i = weight * gamma_i, divided by the number of criteria (paper Sec. V: 0.1).
+        criterion_cost: w_i = criterion_cost * gamma_i, divided by the number of criteria (paper
+            Sec. V: 0.1).
         jla_gamma: gamma of Chan & Dubey's H in the null-space cost (paper Sec. V: 4), so
-            w_H = weight * jla_gamma, not divided (H is no human-likeness criterion); 0 drops H.
+            w_H = criterion_cost * jla_gamma, not divided (H is no human-likeness criterion); 0 drops H.
         step: Gain on the Cartesian error, x_dot = -step * e (Simox CompositeDiffIK ``stepSize``).
         k: Null-space gain; k < 0 descends (paper Sec. V, Chan & Dubey Eq. 10).
         max_null: Bound on the largest joint change of the null-space step, rad (paper:
@@ -77,7 +79,7 @@ class JVSettings(LimitSettings):
             Jacobian's scale). It keeps singular targets bounded.
         error_damping: lambda² = damping² + |e|² (Sugihara 2011): large errors, i.e. targets out of
             reach, get strong damping, small ones the least. False: lambda = damping throughout.
-        orientation_weight: Orientation rows (rad) relative to position rows (m) in the primary task;
+        orientation_cost: Orientation rows (rad) relative to position rows (m) in the primary task;
             it matters only where the targets conflict or are damped. 0.2 is the QP's 2 / 10.
         rcond: Singular values of J below rcond times the largest count as null space.
         max_iter: Steps per frame at most (paper: 100; the first frame gets ten times more).
@@ -93,10 +95,7 @@ class JVSettings(LimitSettings):
             highest priority: a step that breaks it is replaced (:func:`avoiding_least_norm`).
     """
 
-    criteria: tuple[str, ...] = ()
-    scenario: str = "pose"
-    gamma: Mapping[str, float] = field(default_factory=dict)
-    weight: float = 0.1
+    criterion_cost: float = 0.1
     jla_gamma: float = 4.0
     step: float = 0.5
     k: float = -0.5
@@ -104,25 +103,22 @@ class JVSettings(LimitSettings):
     max_step: float = 0.2
     damping: float = 5e-3
     error_damping: bool = True
-    orientation_weight: float = 0.2
+    orientation_cost: float = 0.2
     rcond: float = 1e-6
     max_iter: int = 100
     tol: float = 1e-4
     reached_position: float = 0.0
     reached_orientation: float = 0.0
-    self_collision: bool = True
-    collision_margin: float = 0.01
-    collision_detect: float = 0.10
     collision_gain: float = 0.5
 
     def __post_init__(self):
         check_settings(
             self,
             at_least_zero=(
-                "weight",
+                "criterion_cost",
                 "jla_gamma",
                 "damping",
-                "orientation_weight",
+                "orientation_cost",
                 "collision_margin",
                 "reached_position",
                 "reached_orientation",
@@ -290,7 +286,9 @@ def criterion_terms(robot: Robot, settings: JVSettings, learned: Learned | None)
     terms: list[Term] = []
     for name in settings.criteria:
         term = registry.criterion(name, robot, learned)
-        term.cost_weight = settings.weight * unified.gamma(name, settings.gamma) / len(settings.criteria)
+        term.cost_weight = (
+            settings.criterion_cost * unified.gamma(name, settings.gamma) / len(settings.criteria)
+        )
         terms.append(term)
     return terms
 
@@ -334,7 +332,7 @@ def secondary(
     criteria: Sequence[Term], state: RobotState, frame: Sample, jla: np.ndarray, settings: JVSettings
 ) -> np.ndarray:
     """Gradient (n,) of the null-space cost sum_i w_i h_i + w_H H; ``jla`` is dH/dq (n,)."""
-    grad = settings.weight * settings.jla_gamma * jla
+    grad = settings.criterion_cost * settings.jla_gamma * jla
     for term in criteria:
         grad = grad + term.cost_weight * term.gradient(state, frame)[1]
     return grad
@@ -371,7 +369,7 @@ def step(
     evaluated = evaluate_targets(targets, state, frame)
     if stop_if_reached and targets_reached(evaluated, settings):
         return np.zeros(robot.dof), memory
-    e, jac = primary(evaluated, settings.orientation_weight)
+    e, jac = primary(evaluated, settings.orientation_cost)
     _, jla = chan_dubey(q, robot.lower, robot.upper)
     damping = np.hypot(settings.damping, np.linalg.norm(e)) if settings.error_damping else settings.damping
     box = box or JointBox(robot.lower, robot.upper)
@@ -424,13 +422,10 @@ def step(
 def solve(
     problem: Problem,
     settings: JVSettings = JVSettings(),
-    learned: Learned | None = None,
     progress: Callable[[int], None] | None = None,
 ) -> SolverResult:
     """Retarget frame by frame; diagnostics count the JV steps per frame."""
-    robot = problem.robot
-    if settings.criteria and learned is None:
-        learned = learn(robot)
+    robot, learned = problem.robot, problem.learned
     tasks, first = list(target_terms(settings.scenario)), list(target_terms("pose"))
     criteria = criterion_terms(robot, settings, learned)
     data = mujoco.MjData(robot.model)
@@ -482,8 +477,7 @@ def solve(
 
 def jv_solver(
     settings: JVSettings = JVSettings(),
-    learned: Learned | None = None,
     progress: Callable[[int], None] | None = None,
 ) -> ConfiguredSolver:
     """The JV solver with the given settings, for :func:`hlik.retarget.retarget`."""
-    return ConfiguredSolver("jv", solve, settings, learned, progress)
+    return ConfiguredSolver("jv", solve, settings, progress)

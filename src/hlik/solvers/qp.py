@@ -21,7 +21,7 @@ from hlik.criteria import registry, unified
 from hlik.criteria.base import Sample, Term
 from hlik.criteria.functional import target_terms
 from hlik.criteria.joints import TrunkUpright
-from hlik.criteria.learned import Learned, learn
+from hlik.criteria.learned import Learned
 from hlik.criteria.smoothness import smoothness_terms
 from hlik.errors import SettingsError
 from hlik.problem.problem import Problem
@@ -40,8 +40,9 @@ from hlik.solvers.frames import (
     nearest_band,
     track,
 )
-from hlik.solvers.limits import LimitSettings, MotionLimits
+from hlik.solvers.limits import MotionLimits
 from hlik.solvers.qp_backend import qp_backends, solve_qp
+from hlik.solvers.settings import SolverSettings
 
 # HJA_r's Table II gamma (2) doubled for the QP: beside SYN (gamma 6) it barely acted, and SYN +
 # HJA_r raised 2-Panda's m_hl by 0.042; at 4 by 0.051 (README, quality table), tracking within 2 cm.
@@ -49,7 +50,7 @@ GAMMA: Mapping[str, float] = MappingProxyType({"HJA_r": 4.0})
 
 
 @dataclass(frozen=True)
-class QPSettings(LimitSettings):
+class QPSettings(SolverSettings):
     """The task stack, the stopping rule and the limits (:class:`LimitSettings`: stop margin,
     acceleration and torque limits).
 
@@ -64,7 +65,7 @@ class QPSettings(LimitSettings):
         criterion_cost: Objective weight of the criteria: criterion i adds
             ``gamma_i * criterion_cost / len(criteria) * ||e_i||^2`` (divided by the number of
             criteria as in the paper; its least-squares cost is the square root).
-        velocity, acceleration, jerk: Weights of the smoothness terms.
+        velocity_cost, acceleration_cost, jerk_cost: Weights of the smoothness terms.
         trunk_cost: Weight per rad of the extra (trunk) joints toward home
             (:class:`~hlik.criteria.joints.TrunkUpright`; 0: none).
         damping: Levenberg-Marquardt damping of every step.
@@ -84,8 +85,6 @@ class QPSettings(LimitSettings):
             margin per step).
     """
 
-    criteria: tuple[str, ...] = ()
-    scenario: str = "pose"
     gamma: Mapping[str, float] = field(default_factory=lambda: GAMMA)
     # hands first (issue 28; were 10 and 1): the criteria had bought m_hl by turning the hands
     # (tasks/ee_pose.toml and README "Hands first" have the measurements)
@@ -94,9 +93,9 @@ class QPSettings(LimitSettings):
     relative_position_cost: float = 10.0
     relative_orientation_cost: float = 2.0
     criterion_cost: float = 0.05
-    velocity: float = 0.02
-    acceleration: float = 0.01
-    jerk: float = 0.005
+    velocity_cost: float = 0.02
+    acceleration_cost: float = 0.01
+    jerk_cost: float = 0.005
     trunk_cost: float = 0.0
     position_band: float = 0.0
     orientation_band: float = 0.0
@@ -105,9 +104,6 @@ class QPSettings(LimitSettings):
     tol: float = 1e-4
     max_step: float = 0.2
     solver: str = "daqp"
-    self_collision: bool = True
-    collision_margin: float = 0.01
-    collision_detect: float = 0.10
     collision_gain: float = 0.5
 
     def __post_init__(self):
@@ -119,9 +115,9 @@ class QPSettings(LimitSettings):
                 "relative_position_cost",
                 "relative_orientation_cost",
                 "criterion_cost",
-                "velocity",
-                "acceleration",
-                "jerk",
+                "velocity_cost",
+                "acceleration_cost",
+                "jerk_cost",
                 "trunk_cost",
                 "position_band",
                 "orientation_band",
@@ -159,7 +155,7 @@ def build_terms(
     else:
         position.cost_weight, orientation.cost_weight = settings.position_cost, settings.orientation_cost
     terms: list[Term] = [t for t in (position, orientation) if np.all(np.asarray(t.cost_weight) > 0)]
-    terms += smoothness_terms(robot, settings.velocity, settings.acceleration, settings.jerk)
+    terms += smoothness_terms(robot, settings.velocity_cost, settings.acceleration_cost, settings.jerk_cost)
     if settings.trunk_cost > 0 and robot.extra_joints:
         trunk = TrunkUpright(robot)
         trunk.cost_weight = settings.trunk_cost
@@ -258,13 +254,10 @@ def step(
 def solve(
     problem: Problem,
     settings: QPSettings = QPSettings(),
-    learned: Learned | None = None,
     progress: Callable[[int], None] | None = None,
 ) -> SolverResult:
     """Retarget frame by frame; diagnostics count the QP steps per frame."""
-    robot = problem.robot
-    if settings.criteria and learned is None:
-        learned = learn(robot)
+    robot, learned = problem.robot, problem.learned
     terms = Assembly(build_terms(robot, settings, learned), robot.dof, settings.damping)
     first = Assembly(build_terms(robot, settings, learned, "pose", first=True), robot.dof, settings.damping)
     data = mujoco.MjData(robot.model)
@@ -289,8 +282,7 @@ def solve(
 
 def qp_solver(
     settings: QPSettings = QPSettings(),
-    learned: Learned | None = None,
     progress: Callable[[int], None] | None = None,
 ) -> ConfiguredSolver:
     """The QP solver with the given settings, for :func:`hlik.retarget.retarget`."""
-    return ConfiguredSolver("qp", solve, settings, learned, progress)
+    return ConfiguredSolver("qp", solve, settings, progress)

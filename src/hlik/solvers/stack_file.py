@@ -10,6 +10,7 @@ added criterion weighs ``gamma_i * criterion weight / len(criteria)``, as in the
 from __future__ import annotations
 
 import dataclasses
+import difflib
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -58,20 +59,13 @@ class Stack:
 
 
 def settings_class(solver: str) -> type:
-    """The frozen settings dataclass of a solver (imported on demand)."""
-    if solver == "qp":
-        from hlik.solvers.qp import QPSettings
+    """The frozen settings dataclass of a solver (:class:`~hlik.solvers.settings.SolverSpec`)."""
+    from hlik.solvers import SPECS
 
-        return QPSettings
-    if solver == "jv":
-        from hlik.solvers.jv import JVSettings
-
-        return JVSettings
-    if solver == "slsqp":
-        from hlik.solvers.slsqp import SLSQPSettings
-
-        return SLSQPSettings
-    raise SettingsError(f"solver {solver!r} has no settings; choose one of: {', '.join(SOLVER_TABLES)}")
+    spec = SPECS.get(solver)
+    if spec is None or spec.settings is None:
+        raise SettingsError(f"solver {solver!r} has no settings; choose one of: {', '.join(SOLVER_TABLES)}")
+    return spec.settings
 
 
 def bundled_stacks() -> tuple[str, ...]:
@@ -150,11 +144,26 @@ def _gamma(table: object, path: Path, where: str) -> Mapping[str, float]:
     return MappingProxyType(values)
 
 
+# weights named as in another solver before every weight was ``<what>_cost`` (mink's name)
+RENAMED = {
+    **{k: f"{k}_cost" for k in ("position", "orientation", "velocity", "acceleration", "jerk", "trunk")},
+    **{k: f"{k}_cost" for k in ("relative_position", "relative_orientation", "criterion")},
+    "weight": "criterion_cost",
+    "orientation_weight": "orientation_cost",
+}
+
+
 def _check_keys(table: dict, allowed: set[str], path: Path, where: str) -> None:
     unknown = sorted(set(table) - allowed)
     if unknown:
+        key = unknown[0]
+        if RENAMED.get(key) in allowed:
+            hint = f" (now {RENAMED[key]!r}: every weight is named <what>_cost)"
+        else:
+            close = difflib.get_close_matches(key, sorted(allowed), n=1)
+            hint = f" (did you mean {close[0]!r}?)" if close else ""
         raise SettingsError(
-            f"{path}: unknown key {unknown[0]!r} in {where}; choose from: {', '.join(sorted(allowed))}"
+            f"{path}: unknown key {key!r} in {where}{hint}; choose from: {', '.join(sorted(allowed))}"
         )
 
 

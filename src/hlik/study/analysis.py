@@ -13,6 +13,7 @@ from scipy.spatial.distance import squareform
 from scipy.stats import spearmanr
 
 from hlik.criteria import registry, unified
+from hlik.solvers import SPECS
 
 REACH = 0.10  # m: tracking frames enter the correlation only with both hands this close (Sec. IV-B)
 MERGE = 0.15  # merges closer than this in height count as one node (Sec. IV-C)
@@ -25,7 +26,8 @@ def correlation_frames(table: pa.Table, correlation_approaches: set[str]) -> pa.
     approach = table.column("approach").to_numpy(zero_copy_only=False)
     solver = table.column("solver").to_numpy(zero_copy_only=False)
     near = (table.column("fpos_left").to_numpy() <= REACH) & (table.column("fpos_right").to_numpy() <= REACH)
-    keep = np.isin(approach, list(correlation_approaches)) & ((solver == "jm") | near)
+    mapping = [n for n, s in SPECS.items() if not s.tracks_targets]  # JM: not judged by its reach
+    keep = np.isin(approach, list(correlation_approaches)) & (np.isin(solver, mapping) | near)
     return table.filter(pa.array(keep))
 
 

@@ -9,7 +9,7 @@ from pathlib import Path
 
 from hlik.criteria import registry
 from hlik.errors import HlikError
-from hlik.solvers import SOLVER_NAMES
+from hlik.solvers import SOLVER_NAMES, SPECS
 from hlik.tomlfile import read_toml
 
 PAPER = Path(__file__).with_name("paper.toml")
@@ -71,7 +71,7 @@ def load_approaches(path: str | Path = PAPER) -> tuple[Approach, ...]:
     out: list[Approach] = []
     for solver in _solvers(corr, path, "correlation"):
         out.append(Approach(solver, stack=stacks["pose"], correlation=True))
-        if single and solver != "jm":
+        if single and SPECS[solver].takes_criteria:
             for c in registry.human_likeness():
                 out.append(Approach(solver, (c,), stack=stacks["pose"], correlation=True))
     pairs = ev.get("pairs", [])
@@ -83,8 +83,9 @@ def load_approaches(path: str | Path = PAPER) -> tuple[Approach, ...]:
         if scenario not in stacks:
             raise HlikError(f"{path}: unknown scenario {scenario!r} in evaluation.scenarios (pose, relative)")
         for solver in _solvers(ev, path, "evaluation"):
-            groups = [()] if scenario != "pose" or solver == "jm" else []
-            groups += [tuple(p) for p in pairs] if solver != "jm" else []
+            takes = SPECS[solver].takes_criteria
+            groups = [()] if scenario != "pose" or not takes else []
+            groups += [tuple(p) for p in pairs] if takes else []
             for criteria in groups:
                 _check_criteria(criteria, path)
                 out.append(Approach(solver, criteria, scenario, stacks[scenario]))

@@ -1,0 +1,186 @@
+"""SLSQP per frame with NLopt: the optimizer, the frame's solve (band first, then relaxed), the
+frame loop, and which NLopt exceptions fail a frame rather than the run."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import replace
+from types import MappingProxyType
+
+import nlopt
+import numpy as np
+
+from hlik.criteria.base import Sample
+from hlik.problem.problem import Problem
+from hlik.robot.collision import collision_pairs
+from hlik.robot.model import Robot
+from hlik.solvers.base import ConfiguredSolver, SolverResult
+from hlik.solvers.frames import FrameResult, JointBox, track
+from hlik.solvers.limits import MotionLimits
+from hlik.solvers.slsqp.constraints import (
+    BAND_TOLERANCE,
+    BOX_TOLERANCE,
+    COLLISION_TOLERANCE,
+    BandConstraint,
+    BoxConstraint,
+    CollisionConstraint,
+)
+from hlik.solvers.slsqp.objective import Objective, build_losses
+from hlik.solvers.slsqp.settings import SLSQPSettings
+
+# NLopt exceptions that end one frame, not the run, and the result code each stands for. NLopt's
+# generic failure also comes as a plain RuntimeError("nlopt failure"): only that message counts, so
+# that a RuntimeError raised by hlik's own code in a callback (a bug) stops the run instead of
+# passing for a failed frame.
+NLOPT_ERRORS: Mapping[type[Exception], int] = MappingProxyType(
+    {
+        nlopt.RoundoffLimited: nlopt.ROUNDOFF_LIMITED,
+        nlopt.ForcedStop: nlopt.FORCED_STOP,
+        nlopt.runtime_error: nlopt.FAILURE,
+        RuntimeError: nlopt.FAILURE,
+    }
+)
+NLOPT_FAILURE_MESSAGE = "nlopt failure"
+
+
+def _nlopt_code(err: Exception) -> int | None:
+    """NLopt's result code for an exception NLopt raised, None for any other."""
+    for kind, code in NLOPT_ERRORS.items():
+        if isinstance(err, kind):
+            if kind is RuntimeError and str(err) != NLOPT_FAILURE_MESSAGE:
+                return None
+            return code
+    return None
+
+
+def make_optimizer(robot: Robot, settings: SLSQPSettings) -> nlopt.opt:
+    """NLopt's SLSQP over ``robot``'s joints; unlimited joints keep their infinite bounds."""
+    opt = nlopt.opt(nlopt.LD_SLSQP, robot.dof)
+    opt.set_lower_bounds(np.asarray(robot.lower, dtype=float))
+    opt.set_upper_bounds(np.asarray(robot.upper, dtype=float))
+    opt.set_ftol_rel(settings.ftol_rel)
+    return opt
+
+
+def solve_frame(
+    opt: nlopt.opt,
+    objective: Objective,
+    frame: Sample,
+    q0: np.ndarray,
+    max_eval: int,
+    box: JointBox,
+    collision: CollisionConstraint | None = None,
+    band: BandConstraint | None = None,
+) -> tuple[np.ndarray, int]:
+    """Minimise ``objective`` at ``frame`` from ``q0`` (n,) within ``box`` (and clear of
+    ``collision``, the hands inside ``band``), in the objective's chart when it sets one. With a
+    band, the frame is solved with the hands inside it first and, where that ends outside it (the
+    band cannot be met from here), again with them no worse than at the start.
+
+    Returns:
+        (n,) the solution and NLopt's result code; on failure (negative code) the best finite
+        configuration evaluated, else ``q0``.
+    """
+    if band is None or not len(band):
+        return _solve_once(opt, objective, frame, q0, max_eval, box, collision, None)
+    q, status = _solve_once(opt, objective, frame, q0, max_eval, box, collision, band, strict=True)
+    if status > 0 and band.met(q):
+        return q, status
+    return _solve_once(opt, objective, frame, q0, max_eval, box, collision, band, strict=False)
+
+
+def _solve_once(
+    opt: nlopt.opt,
+    objective: Objective,
+    frame: Sample,
+    q0: np.ndarray,
+    max_eval: int,
+    box: JointBox,
+    collision: CollisionConstraint | None,
+    band: BandConstraint | None,
+    strict: bool = False,
+) -> tuple[np.ndarray, int]:
+    """One NLopt run of :func:`solve_frame`; ``strict``: the band as it is, else relaxed to the start."""
+    objective.reset(frame, q0)
+    chart = objective.chart
+    opt.remove_inequality_constraints()
+    if collision is not None:
+        collision.chart = chart
+        tolerance = np.full(collision.settings.collision_pairs, COLLISION_TOLERANCE)
+        opt.add_inequality_mconstraint(collision, tolerance)
+    if band is not None:
+        band.reset(frame, q0, chart, strict)
+        opt.add_inequality_mconstraint(band, np.full(len(band), BAND_TOLERANCE))
+    if chart is None:
+        opt.set_lower_bounds(box.lower)
+        opt.set_upper_bounds(box.upper)
+        x0 = q0
+    else:
+        opt.set_lower_bounds(np.full(len(q0), -np.inf))
+        opt.set_upper_bounds(np.full(len(q0), np.inf))
+        x0 = np.zeros(len(q0))
+    bounds = BoxConstraint(chart, box)
+    if len(bounds):
+        # a joint starting on its limit starts on the row: with no tolerance, rounding in A x
+        # made SLSQP's line search fail (ROUNDOFF_LIMITED) on 7 % of ARMAR-6's Cut frames
+        opt.add_inequality_mconstraint(bounds, np.full(len(bounds), BOX_TOLERANCE))
+    opt.set_min_objective(objective)
+    opt.set_maxeval(max_eval)
+    try:
+        x = opt.optimize(x0)
+        status = opt.last_optimize_result()
+        q = x if chart is None else chart.q(x)
+        if not (np.all(np.isfinite(q)) and np.isfinite(opt.last_optimum_value())):
+            q, status = None, nlopt.FAILURE
+    except tuple(NLOPT_ERRORS) as err:
+        code = _nlopt_code(err)
+        if code is None:
+            raise
+        q, status = None, code
+    if q is None:
+        q = objective.best if objective.best is not None else q0
+    return np.asarray(q, dtype=float), int(status)
+
+
+def solve(
+    problem: Problem,
+    settings: SLSQPSettings = SLSQPSettings(),
+    progress: Callable[[int], None] | None = None,
+) -> SolverResult:
+    """Retarget frame by frame.
+
+    Diagnostics: ``iterations`` counts NLopt's objective evaluations (``fd``: each costs n + 1 FK
+    passes), a frame has converged when NLopt stopped by its tolerance (not ``MAXEVAL_REACHED``) and
+    failed when NLopt failed or returned a non-finite result; ``info["status"]`` (T,) holds NLopt's
+    result codes.
+    """
+    robot, learned = problem.robot, problem.learned
+    s = settings
+    objective = Objective(robot, build_losses(robot, s, learned), s.gradients, s.fd_step, s.precondition)
+    first = Objective(robot, build_losses(robot, s, learned, True), s.gradients, s.fd_step, s.precondition)
+    opt = make_optimizer(robot, settings)
+    pairs = collision_pairs(robot) if settings.self_collision else None
+    collision = CollisionConstraint(robot, pairs, settings) if pairs is not None and len(pairs) else None
+    band, first_band = (BandConstraint(robot, o.losses, settings) for o in (objective, first))
+    status = np.zeros(problem.n_frames, dtype=int)
+
+    def solve_frame_k(k: int, frame: Sample, q: np.ndarray, box: JointBox) -> FrameResult:
+        obj, max_eval, hands = (
+            (first, settings.first_eval, first_band) if k == 0 else (objective, settings.max_eval, band)
+        )
+        if collision is not None:
+            collision.brake(box)
+        q, status[k] = solve_frame(opt, obj, frame, box.clip(q), max_eval, box, collision, hands)
+        converged = status[k] > 0 and status[k] != nlopt.MAXEVAL_REACHED
+        return FrameResult(box.clip(q), obj.evaluations, converged, status[k] < 0)
+
+    result = track(problem, solve_frame_k, progress, MotionLimits.of(robot, settings))
+    return replace(result, info=MappingProxyType({"status": status}))
+
+
+def slsqp_solver(
+    settings: SLSQPSettings = SLSQPSettings(),
+    progress: Callable[[int], None] | None = None,
+) -> ConfiguredSolver:
+    """The SLSQP solver (the paper's OPT) with the given settings, for :func:`hlik.retarget.retarget`."""
+    return ConfiguredSolver("slsqp", solve, settings, progress)
