@@ -25,7 +25,6 @@ from hlik.problem.placement import placement_from_spec
 from hlik.recording import (
     ASPECT,
     FRAME_TAN,
-    _display_placement,
     joint_groups,
     object_label,
     robot_camera,
@@ -33,6 +32,7 @@ from hlik.recording import (
     score_window,
     write_recording,
 )
+from hlik.recording.scene import _display_placement
 from hlik.retarget import retarget
 from hlik.robot.model import load_robot
 

@@ -181,12 +181,12 @@ def test_malformed_motion_file(tmp_path):
 
 
 def test_failed_recording_leaves_nothing(tmp_path, monkeypatch):
-    import hlik.recording
+    import hlik.recording.write
 
     def broken(*_args, **_kwargs):
         raise OSError(28, "No space left on device")
 
-    monkeypatch.setattr(hlik.recording, "_log", broken)
+    monkeypatch.setattr(hlik.recording.write, "_log", broken)
     out = tmp_path / "x.rrd"
     result = _invoke("--out", str(out))
     assert result.exit_code == 2 and "No space left" in result.stderr

@@ -1,0 +1,67 @@
+"""The result panel: the run's motion, robot, solver, settings, scores and diagnostics as markdown."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from pathlib import Path
+
+import numpy as np
+
+from hlik.metrics import Evaluation
+from hlik.robot.model import Robot
+from hlik.trajectory import Trajectory
+
+
+def summary(traj: Trajectory, robot: Robot, evaluation: Evaluation | None, info: Mapping[str, str]) -> str:
+    """The markdown of the result panel: motion, robot, solver, placement and ``info``'s settings;
+    the scores (the numbers of ``hlik evaluate --json``, rounded); the solver's diagnostics; the
+    hlik version."""
+    from hlik.version import __version__
+
+    d = traj.diagnostics
+    rate = (traj.n_frames - 1) / (traj.times[-1] - traj.times[0]) if traj.n_frames > 1 else 0.0
+    settings = {
+        "motion": f"{traj.motion.name} ({traj.n_frames} frames, {rate:.0f} Hz)",
+        "robot": f"{robot.title} ({robot.name})",
+        "solver": traj.solver,
+        "placement": traj.placement.method,
+        **{k: str(v) for k, v in info.items()},
+    }
+    source = traj.motion.source
+    title = Path(source).stem if source else traj.motion.name  # the file, as the CLI names runs
+    lines = [f"### {title} on {robot.name}, {traj.solver}", ""]
+    table = []
+    if evaluation is not None:  # the scores first: what the panel is opened for
+        result = evaluation.to_json()
+        lines += [
+            f"**m_hl = {result['m_hl']:.4f}**, m_f = {result['m_f']:.4f}, "
+            f"m_hl,f = {result['m_hl_f']:.4f} (scenario {result['scenario']}; "
+            f"weights and x0: {_cell(result['metric'])})",
+            "",
+        ]
+        table = ["", "| criterion | mean h | m |", "|---|---:|---:|"]
+        for group in ("metrics", "functional"):
+            table += [f"| {k} | {v['h']:.4g} | {v['m']:.4f} |" for k, v in result[group].items()]
+    lines += ["| | |", "|---|---|"]
+    lines += [f"| {k} | {_cell(v)} |" for k, v in settings.items()]
+    lines += table
+    n = traj.n_frames
+    lines += [
+        "",
+        "| diagnostics | |",
+        "|---|---:|",
+        f"| failed frames | {d.n_failed} of {n} |",
+        f"| unconverged frames | {d.n_unconverged} of {n} |",
+    ]
+    if evaluation is not None:
+        lines += [
+            f"| frames in self-collision | {int(np.count_nonzero(evaluation.collisions))} of {n} |",
+            f"| max speed ratio | {evaluation.max_speed_ratio:.3g} |",
+        ]
+    lines += ["", f"hlik {__version__}"]
+    return "\n".join(lines) + "\n"
+
+
+def _cell(text: str) -> str:
+    """``text`` safe in a markdown table cell."""
+    return str(text).replace("|", "\\|").replace("\n", " ")

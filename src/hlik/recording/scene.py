@@ -1,0 +1,241 @@
+"""The 3D scene: robot and human models (MJCF geometry as meshes), hand paths and frames, keypoints,
+scene objects and the placement as drawn."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator, Mapping
+
+import mujoco
+import numpy as np
+import rerun as rr
+
+from hlik.fk import body_poses
+from hlik.human.motion import ObjectMotion
+from hlik.problem.placement import Placement
+from hlik.recording.columns import Columns, Track, _entity, _index, _pose_columns, _xyzw
+from hlik.recording.style import _FILL, SIDE_COLORS, SPACING
+from hlik.robot.model import COLLISION_GROUP, SIDES
+
+
+def _display_placement(placement: Placement, layout: str) -> Placement:
+    if layout == "overlay":
+        return placement
+    # beside the human, along the human's right at the first frame (the robot base x axis)
+    return Placement(placement.rotation, placement.translation + SPACING * placement.rotation[:, 0])
+
+
+def _model(
+    rec, root: str, model: mujoco.MjModel, qpos: Callable[[slice], np.ndarray], times: np.ndarray, alpha: int
+) -> Track:
+    """Log the static geometry of every body with some; the track of their poses, from
+    ``qpos(frames)`` (F, nq) by forward kinematics."""
+    bodies = []
+    for body in range(1, model.nbody):
+        entity = f"{root}/{_entity(model.body(body).name) or f'body{body}'}"
+        # collision volumes are for the solvers, not the eye
+        geoms = [
+            g
+            for g in range(model.ngeom)
+            if model.geom_bodyid[g] == body and model.geom_group[g] != COLLISION_GROUP
+        ]
+        if not geoms:
+            continue
+        for archetype_name, archetype in _geometry(model, geoms, alpha).items():
+            rec.log(f"{entity}/{archetype_name}", archetype, static=True)
+        bodies.append((body, entity))
+
+    def track(rows: slice) -> Iterator[Columns]:
+        pos, quat = body_poses(model, qpos(rows))
+        index = _index(times, rows)
+        for body, entity in bodies:
+            columns = rr.Transform3D.columns(translation=pos[:, body], quaternion=_xyzw(quat[:, body]))
+            yield entity, index, columns
+
+    return track
+
+
+def _geometry(model: mujoco.MjModel, geoms: list[int], alpha: int) -> dict[str, rr.AsComponents]:
+    """Rerun primitives for MuJoCo geoms, in their body's frame, one batch per kind."""
+    batches: dict[str, dict[str, list]] = {}
+    meshes = [g for g in geoms if model.geom_type[g] == mujoco.mjtGeom.mjGEOM_MESH]
+    for g in geoms:
+        gtype = mujoco.mjtGeom(int(model.geom_type[g]))
+        if gtype not in _PRIMITIVES:  # planes and height fields: robots have none
+            continue
+        kind, fields = _PRIMITIVES[gtype]
+        rot = np.empty(9)
+        mujoco.mju_quat2Mat(rot, model.geom_quat[g])
+        batch = batches.setdefault(kind, {"quaternions": [], "colors": []})
+        for key, value in fields(model.geom_size[g], model.geom_pos[g], rot.reshape(3, 3)).items():
+            batch.setdefault(key, []).append(value)
+        batch["quaternions"].append(_xyzw(model.geom_quat[g]))
+        batch["colors"].append((*np.round(255 * model.geom_rgba[g, :3]).astype(int), alpha))
+    archetypes = {kind: _ARCHETYPES[kind](**batch, fill_mode=_FILL) for kind, batch in batches.items()}
+    if meshes:
+        archetypes["mesh"] = _mesh(model, meshes, alpha)
+    return archetypes
+
+
+def _mesh(model: mujoco.MjModel, geoms: list[int], alpha: int) -> rr.Mesh3D:
+    """One Rerun mesh of a body's mesh geoms (models imported from URDF or Menagerie), in the
+    body's frame: MuJoCo stores each mesh centred in its geom's frame."""
+    positions, triangles, colors, offset = [], [], [], 0
+    for g in geoms:
+        mesh = int(model.geom_dataid[g])
+        vert = model.mesh_vert[model.mesh_vertadr[mesh] : model.mesh_vertadr[mesh] + model.mesh_vertnum[mesh]]
+        face = model.mesh_face[model.mesh_faceadr[mesh] : model.mesh_faceadr[mesh] + model.mesh_facenum[mesh]]
+        rot = np.empty(9)
+        mujoco.mju_quat2Mat(rot, model.geom_quat[g])
+        positions.append(vert @ rot.reshape(3, 3).T + model.geom_pos[g])
+        triangles.append(face + offset)
+        offset += len(vert)
+        mat = int(model.geom_matid[g])
+        rgba = model.mat_rgba[mat] if mat >= 0 else model.geom_rgba[g]
+        colors.append(np.tile((*np.round(255 * rgba[:3]).astype(int), alpha), (len(vert), 1)))
+    return rr.Mesh3D(
+        vertex_positions=np.concatenate(positions),
+        triangle_indices=np.concatenate(triangles),
+        vertex_colors=np.concatenate(colors).astype(np.uint8),
+    )
+
+
+# MuJoCo geom (size, pos, rot) -> Rerun fields. MuJoCo capsules are centred on pos; Rerun's start at
+# the origin and run along +z, so they start half a length back.
+_PRIMITIVES = {
+    mujoco.mjtGeom.mjGEOM_CAPSULE: (
+        "capsules",
+        lambda size, pos, rot: {
+            "lengths": 2 * size[1],
+            "radii": size[0],
+            "translations": pos - rot[:, 2] * size[1],
+        },
+    ),
+    mujoco.mjtGeom.mjGEOM_CYLINDER: (
+        "cylinders",
+        lambda size, pos, rot: {"lengths": 2 * size[1], "radii": size[0], "centers": pos},
+    ),
+    mujoco.mjtGeom.mjGEOM_BOX: ("boxes", lambda size, pos, rot: {"half_sizes": size, "centers": pos}),
+    mujoco.mjtGeom.mjGEOM_SPHERE: (
+        "ellipsoids",
+        lambda size, pos, rot: {"half_sizes": np.full(3, size[0]), "centers": pos},
+    ),
+    mujoco.mjtGeom.mjGEOM_ELLIPSOID: (
+        "ellipsoids",
+        lambda size, pos, rot: {"half_sizes": size, "centers": pos},
+    ),
+}
+_ARCHETYPES = {
+    "capsules": rr.Capsules3D,
+    "cylinders": rr.Cylinders3D,
+    "boxes": rr.Boxes3D,
+    "ellipsoids": rr.Ellipsoids3D,
+}
+
+
+def _log_paths(rec, entity: str, pos: np.ndarray, colors: Mapping[str, tuple]) -> None:
+    """Both arms' paths (T, 2, 3) as two static line strips."""
+    rec.log(
+        entity,
+        rr.LineStrips3D(
+            [pos[:, i] for i in range(len(SIDES))],
+            colors=[colors[s] for s in SIDES],
+            radii=0.003,
+            labels=list(SIDES),
+        ),
+        static=True,
+    )
+
+
+def _keypoints_track(rec, entity: str, markers: Mapping[str, np.ndarray], times: np.ndarray) -> Track:
+    """Log the keypoints a fitted motion was fitted to; the track of their positions."""
+    names = list(markers)
+    points = np.stack([markers[n] for n in names], axis=1)  # (T, K, 3)
+    colors = [SIDE_COLORS[n.split("_", 1)[0]] for n in names]
+    rec.log(
+        entity,
+        rr.Points3D.from_fields(radii=0.015, colors=colors, labels=names, show_labels=False),
+        static=True,
+    )
+
+    def track(rows: slice) -> Iterator[Columns]:
+        p = points[rows]
+        columns = rr.Points3D.columns(positions=p.reshape(-1, 3)).partition(lengths=[p.shape[1]] * len(p))
+        yield entity, _index(times, rows), columns
+
+    return track
+
+
+def _frames_track(rec, entity: str, pos: np.ndarray, rot: np.ndarray, times: np.ndarray) -> Track:
+    """Log axes at ``entity``; the track of its poses (T, 3) and (T, 3, 3)."""
+    rec.log(entity, rr.TransformAxes3D(0.08), static=True)
+
+    def track(rows: slice) -> Iterator[Columns]:
+        yield entity, _index(times, rows), _pose_columns(pos[rows], rot[rows])
+
+    return track
+
+
+def _object(rec, entity: str, obj: ObjectMotion, times: np.ndarray, chunk_frames: int) -> list[Track]:
+    """Log a scene object as a box around its markers (or a 5 cm cube) at ``/world/objects/<entity>``
+    and its name, ``true_`` dropped, 3 cm above the box's top at ``/world/labels/<entity>`` (a label
+    on the box itself sits on the hand holding it); the track of both, where the object's pose is
+    finite (none if it never is)."""
+    known = np.all(np.isfinite(obj.position), axis=1) & np.all(np.isfinite(obj.rotation), axis=(1, 2))
+    if not known.any():
+        return []
+    half, center = np.full(3, 0.025), np.zeros(3)
+    if obj.markers:
+        local = _local_markers(obj, np.flatnonzero(known), chunk_frames)
+        local = local[np.all(np.isfinite(local), axis=1)]
+        if len(local):
+            lo, hi = np.percentile(local, [2, 98], axis=0)
+            half, center = np.maximum((hi - lo) / 2, 0.01), (hi + lo) / 2
+    box, label = f"/world/objects/{entity}", f"/world/labels/{entity}"
+    rec.log(
+        box,
+        rr.Boxes3D(half_sizes=[half], centers=[center], colors=[(160, 160, 160, 120)], fill_mode=_FILL),
+        static=True,
+    )
+    rec.log(
+        label,
+        # on hover only: held objects sit in the hands, where a drawn label would cover them
+        rr.Points3D(
+            [[0.0, 0.0, 0.0]],
+            radii=0.004,
+            colors=[(90, 90, 90)],
+            labels=[object_label(obj.name)],
+            show_labels=False,
+        ),
+        static=True,
+    )
+
+    def track(rows: slice) -> Iterator[Columns]:
+        frames = rows.start + np.flatnonzero(known[rows])
+        if len(frames):
+            index = [rr.TimeColumn("frame", sequence=frames), rr.TimeColumn("time", duration=times[frames])]
+            pos, rot = obj.position[frames], obj.rotation[frames]
+            yield box, index, _pose_columns(pos, rot)
+            # the box's centre, raised by its half-height along the world's z (rotated box) + 3 cm
+            top = np.abs(rot[:, 2, :]) @ half + 0.03
+            above = pos + rot @ center + top[:, None] * [0.0, 0.0, 1.0]
+            yield label, index, rr.Transform3D.columns(translation=above)
+
+    return [track]
+
+
+def object_label(name: str) -> str:
+    """The name shown for a scene object: the KIT takes' ``true_`` prefix (ground-truth object
+    poses) dropped, ``true_knife_black`` -> ``knife_black``."""
+    return name.removeprefix("true_") or name
+
+
+def _local_markers(obj: ObjectMotion, frames: np.ndarray, chunk_frames: int) -> np.ndarray:
+    """(M * F, 3) positions of the M markers in the object's frame at ``frames`` (F,), marker by
+    marker; computed ``chunk_frames`` frames at a time into one array, the only one as long as the take."""
+    local = np.empty((len(obj.markers), len(frames), 3))
+    for start in range(0, len(frames), chunk_frames):
+        rows = frames[start : start + chunk_frames]
+        rot, pos = obj.rotation[rows], obj.position[rows]
+        for i, m in enumerate(obj.markers.values()):
+            local[i, start : start + len(rows)] = np.einsum("tji,tj->ti", rot, m[rows] - pos)
+    return local.reshape(-1, 3)
