@@ -232,5 +232,9 @@ def test_auto_scale_keeps_the_subjects_reach_about_the_robots_shoulders(g1, cut_
         shoulders, robot_z = shoulder_heights(robot, scaled)
         assert abs(shoulders[2] - robot_z) < 1e-9
         note = scaled.notes[-1]
-        assert note.startswith(str(cut_take)) and "about its shoulders" in note and "off the floor" in note
-    assert 1.4 < auto_scale(load_robot("armar6"), motion) < 1.6 and "feet -0.7" in note
+        assert note.startswith(str(cut_take)) and "about its shoulders" in note and " the floor" in note
+    assert (
+        1.4 < auto_scale(load_robot("armar6"), motion) < 1.6
+        and "feet 0.7" in note
+        and "below the floor" in note
+    )

@@ -21,9 +21,10 @@ from hlik.problem.placement import shoulder_placement
 from hlik.problem.targets import HandTargets, hand_targets
 from hlik.robot.model import SIDES, joint_mapping, tcp_poses
 from hlik.robot.state import robot_state
-from hlik.solvers import qp
+from hlik.solvers import get_solver, qp
 from hlik.solvers.mink_tasks import CriterionTask, HumanJointLimit
 from hlik.solvers.qp import QPSettings, qp_solver, solve
+from hlik.solvers.stack_file import load_stack
 
 
 def _frame(robot, q_target):
@@ -251,3 +252,24 @@ def test_the_band_moves_a_robot_that_starts_far_from_its_targets(takes, name):
     err = np.linalg.norm(traj.tcp_pos - traj.targets.pos, axis=-1)
     assert err[-10:].max() < 0.01, err[-10:].max()
     assert not any(len(self_contacts(r, q)) for q in traj.q[::10])
+
+
+@pytest.mark.parametrize("name", ["armar3", "armar6", "dual_panda"])
+def test_the_qp_stack_on_mink_is_the_qp(name):
+    """MinkSolver.from_settings solves the QP's own stack (every term a CriterionTask, the first
+    frame's stack, the frame box, collision rows, stopping rule) through mink.solve_ik: the same
+    joint angles as the QP solver, step for step, where no soft row is needed; a band it has no
+    rows for is refused."""
+    from hlik.errors import SettingsError
+    from hlik.solvers.mink_ik import MinkSolver
+
+    r = load_robot(name)
+    learned = learn(r)
+    settings = load_stack("ee_pose").with_criteria(["SYN", "HJA_r", "MJE"]).settings("qp")
+    motion = demo_motion().crop(2.0, 2.6)
+    qp_traj = retarget(motion, r, get_solver("qp", settings), learned=learned)
+    mink_traj = retarget(motion, r, MinkSolver.from_settings(r, settings, learned), learned=learned)
+    np.testing.assert_allclose(mink_traj.q, qp_traj.q, atol=1e-9)
+    np.testing.assert_array_equal(mink_traj.diagnostics.iterations, qp_traj.diagnostics.iterations)
+    with pytest.raises(SettingsError, match="band"):
+        MinkSolver.from_settings(r, replace(settings, position_band=0.005), learned)

@@ -191,3 +191,40 @@ def test_a_registered_criterion_runs_through_every_solver_and_evaluate(toy):
             assert np.mean(ev.h["TOY"]) < np.mean(ev0.h["TOY"]), name
     assert isinstance(get_solver("jv", JVSettings(criteria=("TOY",))), object)
     assert isinstance(SLSQPSettings(criteria=("TOY",)), SLSQPSettings)
+
+
+def test_the_readmes_toy_criterion_does_what_it_says():
+    """README "Extending hlik": its ElbowDown, registered from a script, has the Jacobian of its
+    residual (central differences, on a robot whose shoulders move: ARMAR-III's hip) and, added to
+    the QP, brings the elbows down (the example first pulled them up to the shoulders)."""
+    from pathlib import Path
+
+    import hlik
+    from hlik.robot.model import load_robot
+    from hlik.robot.state import robot_state
+
+    text = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    start = text.index("import numpy as np\nfrom hlik.criteria import registry")
+    namespace: dict = {}
+    exec(text[start : text.index("```", start)], namespace)  # noqa: S102 - the README's own block
+    try:
+        robot = load_robot("armar3")
+        crit = registry.criterion("ELB", robot)
+        rng = np.random.default_rng(3)
+        q = robot.home + rng.uniform(-0.3, 0.3, (4, robot.dof))
+        state = robot_state(robot, q, jacobians=True)
+        numeric = central_differences(lambda x: crit.residual(robot_state(robot, x), None), q)
+        np.testing.assert_allclose(crit.jacobian(state, None), numeric, atol=1e-6)
+        spec = dict(motion=None, robot="armar6", solver="qp", span=(2.0, 3.0))
+        plain = hlik.run(hlik.RunSpec(**spec, criteria=()))
+        down = hlik.run(hlik.RunSpec(**spec, criteria=("ELB",)))
+
+        def above(result) -> float:  # mean elbow height over the shoulder minus 20 cm, where above
+            s = robot_state(result.robot, result.trajectory.q)
+            return float(np.maximum(s.elbow[..., 2] - s.shoulder[..., 2] + 0.2, 0.0).mean())
+
+        assert (
+            above(down) < above(plain) and down.evaluation.h["ELB"].mean() < plain.evaluation.h["ELB"].mean()
+        )
+    finally:
+        registry.unregister("ELB")

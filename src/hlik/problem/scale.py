@@ -72,10 +72,8 @@ def scale_subject(motion: HumanMotion, robot: Robot, rule: float | str | None = 
         factor = auto_scale(robot, motion)
         shoulders, robot_z = shoulder_heights(robot, motion)
         lift = robot_z - factor * shoulders[2]
-        why = (
-            f" to {robot.title}'s arms about its shoulders "
-            f"(subject_scale auto; feet {lift:+.2f} m off the floor)"
-        )
+        feet = f"{abs(lift):.2f} m {'above' if lift > 0 else 'below'} the floor"
+        why = f" to {robot.title}'s arms about its shoulders (subject_scale auto; its feet {feet})"
         return motion.scaled(factor, why, about=shoulders, to=np.array([*shoulders[:2], robot_z]))
     try:
         factor = float(rule)

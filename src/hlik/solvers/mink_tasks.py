@@ -9,6 +9,8 @@ their margin, speed, acceleration, braking, torque), the same bounds every hlik 
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import mink
 import mujoco
 import numpy as np
@@ -18,21 +20,46 @@ from hlik.criteria import registry
 from hlik.criteria.base import Sample, Term
 from hlik.criteria.joints import human_limits
 from hlik.criteria.learned import Learned
+from hlik.robot.collision import DistanceBounds, collision_pairs
 from hlik.robot.model import Robot
-from hlik.robot.state import robot_state
-from hlik.solvers.frames import JointBox
+from hlik.robot.state import RobotState, robot_state
+from hlik.solvers.frames import JointBox, collision_floors, collision_rows
+
+
+class StateCache:
+    r"""One kinematics pass per configuration, shared by the :class:`CriterionTask`\ s of a stack
+    (mink asks every task on its own; each would run forward kinematics and site Jacobians)."""
+
+    def __init__(self, robot: Robot):
+        self.robot, self.data = robot, mujoco.MjData(robot.model)
+        self._key: bytes | None = None
+        self._state: RobotState | None = None
+
+    def state(self, q: np.ndarray) -> RobotState:
+        key = np.asarray(q, dtype=float).tobytes()
+        if key != self._key or self._state is None:
+            self._state = robot_state(self.robot, q, jacobians=True, data=self.data)
+            self._key = key
+        return self._state
 
 
 class CriterionTask(mink.Task):
-    """A least-squares hlik term as a ``mink.Task``; the robot's ``qpos`` is its configuration."""
+    """A least-squares hlik term as a ``mink.Task``; the robot's ``qpos`` is its configuration.
+    Tasks given one :class:`StateCache` share its kinematics pass."""
 
     def __init__(
-        self, robot: Robot, term: Term, cost: float = 1.0, gain: float = 1.0, lm_damping: float = 0.0
+        self,
+        robot: Robot,
+        term: Term,
+        cost: float = 1.0,
+        gain: float = 1.0,
+        lm_damping: float = 0.0,
+        cache: StateCache | None = None,
     ):
         self.robot, self.term = robot, term
         self.sample: Sample | None = None
         self._scale = float(cost)
-        self._data = mujoco.MjData(robot.model)
+        self.cache = cache or StateCache(robot)
         super().__init__(cost=np.ones(0), gain=gain, lm_damping=lm_damping)
 
     @classmethod
@@ -57,8 +84,7 @@ class CriterionTask(mink.Task):
     def _residual(self, configuration: mink.Configuration) -> tuple[np.ndarray, np.ndarray]:
         if self.sample is None and self.term.needs_sample:
             raise mink.exceptions.TargetNotSet(type(self).__name__)
-        state = robot_state(self.robot, configuration.q, jacobians=True, data=self._data)
-        e, jac = self.term(state, self.sample)  # type: ignore[arg-type]  # None only if not needed
+        e, jac = self.term(self.cache.state(configuration.q), self.sample)  # type: ignore[arg-type]  # None only if not needed
         # mink reads the cost vector's length as the task dimension
         self.cost = self._scale * np.broadcast_to(self.term.cost_weight, e.shape).astype(float)
         return e, jac
@@ -88,8 +114,8 @@ class FrameBoxLimit(Limit):
     mink steps from. :class:`hlik.solvers.mink_ik.MinkSolver` sets the box each frame
     (:meth:`set_box`); a joint outside the box may only move back."""
 
-    def __init__(self, n: int):
-        self.n = n
+    def __init__(self, n: int, max_step: float = np.inf):
+        self.n, self.max_step = n, max_step
         self.box: JointBox | None = None
 
     def set_box(self, box: JointBox) -> None:
@@ -99,10 +125,69 @@ class FrameBoxLimit(Limit):
         if self.box is None:
             return Constraint()
         q, eye = configuration.q, np.eye(self.n)
-        upper, lower = np.isfinite(self.box.upper), np.isfinite(self.box.lower)
+        low, high = self.box.step_bounds(q, self.max_step)  # a joint outside may only move back
+        upper, lower = np.isfinite(high), np.isfinite(low)
         rows, bound = self.box.step_rows(q)
         g = np.vstack([eye[upper], -eye[lower], rows])
-        h = np.concatenate(
-            [np.maximum(self.box.upper - q, 0.0)[upper], np.maximum(q - self.box.lower, 0.0)[lower], bound]
+        return Constraint(G=g, h=np.concatenate([high[upper], -low[lower], bound]))
+
+
+class BoxOnlyLimit(Limit):
+    """The bounds of a :class:`FrameBoxLimit`'s box without its rows (the torque rows): always
+    feasible, since a joint outside its box may move back or stay."""
+
+    def __init__(self, frame_box: FrameBoxLimit):
+        self.frame_box = frame_box
+
+    def compute_qp_inequalities(self, configuration: mink.Configuration, dt: float) -> Constraint:
+        box = self.frame_box.box
+        if box is None:
+            return Constraint()
+        eye = np.eye(self.frame_box.n)
+        low, high = box.step_bounds(configuration.q, self.frame_box.max_step)
+        upper, lower = np.isfinite(high), np.isfinite(low)
+        return Constraint(
+            G=np.vstack([eye[upper], -eye[lower]]), h=np.concatenate([high[upper], -low[lower]])
         )
-        return Constraint(G=g, h=h)
+
+
+class SelfCollisionLimit(Limit):
+    """Self-collision avoidance as a ``mink.Limit``: hlik's velocity-damper rows on every pair of
+    the robot's collision geoms (:func:`~hlik.solvers.frames.collision_rows`, the QP's and JV's:
+    a pair closer than ``collision_detect`` may approach its ``collision_margin`` by at most
+    ``collision_gain`` of the gap per step), braking before the margin as the frame's box asks
+    (:meth:`set_box`)."""
+
+    def __init__(
+        self,
+        robot: Robot,
+        collision_margin: float = 0.01,
+        collision_detect: float = 0.10,
+        collision_gain: float = 0.5,
+        cache: StateCache | None = None,
+    ):
+        self.robot, self.data = robot, mujoco.MjData(robot.model)
+        self.cache = cache or StateCache(robot)  # the configuration's kinematics, shared with the tasks
+        self.settings = SimpleNamespace(
+            collision_margin=collision_margin,
+            collision_detect=collision_detect,
+            collision_gain=collision_gain,
+        )
+        self.pairs = collision_pairs(robot)
+        self.bounds = DistanceBounds(self.pairs) if self.pairs is not None else None
+        self.floors: tuple[np.ndarray, np.ndarray] | None = None
+
+    def set_box(self, box: JointBox) -> None:
+        """The frame's braking floors (:func:`~hlik.solvers.frames.collision_floors`)."""
+        self.floors = collision_floors(self.robot, self.data, self.pairs, box, self.settings, self.bounds)
+
+    def compute_qp_inequalities(self, configuration: mink.Configuration, dt: float) -> Constraint:
+        if self.pairs is None or not len(self.pairs):
+            return Constraint()
+        self.data.qpos[:] = configuration.q
+        mujoco.mj_kinematics(self.robot.model, self.data)
+        mujoco.mj_comPos(self.robot.model, self.data)
+        rows, bound = collision_rows(
+            self.robot, self.data, self.pairs, self.bounds, self.settings, self.floors
+        )
+        return Constraint(G=rows, h=bound) if len(bound) else Constraint()
