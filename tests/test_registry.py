@@ -17,7 +17,7 @@ from hlik.metrics import costs, evaluate
 from hlik.problem.problem import build_problem
 from hlik.retarget import retarget
 from hlik.robot.state import robot_state
-from hlik.solvers import SOLVERS, get_solver
+from hlik.solvers import SOLVERS, SPECS, get_solver
 from hlik.solvers.frames import sample_at
 from hlik.solvers.jv import JVSettings
 from hlik.solvers.qp import QPSettings
@@ -178,16 +178,17 @@ def test_a_registered_criterion_runs_through_every_solver_and_evaluate(toy):
         "jv": replace(stack.settings("jv"), max_iter=20),
         "qp": replace(stack.settings("qp"), criterion_cost=5.0),
         "slsqp": replace(stack.settings("slsqp"), max_eval=30),
+        "mink": replace(stack.settings("mink"), criterion_cost=5.0),
     }
     for name in SOLVERS:
-        if name == "jm":
+        if not SPECS[name].takes_criteria:
             continue
         plain = retarget(motion, r, get_solver(name, replace(settings[name], criteria=())), learned=learned)
         with_toy = retarget(motion, r, get_solver(name, settings[name]), learned=learned)
         ev, ev0 = evaluate(with_toy, r, learned), evaluate(plain, r, learned)
         assert "TOY" in ev.m and np.isfinite(ev.h["TOY"]).all(), name
         assert ev.m_hl == pytest.approx(ev0.m_hl, abs=0.2)  # weight 0: scored, not in m_hl's sum
-        if name == "qp":  # where the null space allows it, the criterion acts
+        if name in ("qp", "mink"):  # where the null space allows it, the criterion acts
             assert np.mean(ev.h["TOY"]) < np.mean(ev0.h["TOY"]), name
     assert isinstance(get_solver("jv", JVSettings(criteria=("TOY",))), object)
     assert isinstance(SLSQPSettings(criteria=("TOY",)), SLSQPSettings)

@@ -166,3 +166,42 @@ def test_a_weight_by_its_old_or_a_misspelt_name_is_refused_with_the_name_to_use(
     assert (
         message.startswith(str(path)) and f"unknown key {key!r} in [{table}]" in message and said in message
     )
+
+
+def test_a_stack_file_names_mink_tasks_and_limits_beside_hlik_s(tmp_path):
+    """``[mink]`` starts from ``[qp]`` and adds mink's own classes by name: ``--solver mink`` is the
+    QP (the same joint angles without extras), and a PostureTask pulls the robot toward home; an
+    unknown class or parameter is refused naming the file and the class."""
+    import numpy as np
+
+    import hlik
+    from hlik.criteria.learned import learn
+    from hlik.human.demo import demo_motion
+    from hlik.solvers import get_solver
+
+    path = tmp_path / "posture.toml"
+    path.write_text(
+        'criteria = ["HJA_r"]\n[qp]\nposition_cost = 20.0\n[mink]\n'
+        'tasks = [{ type = "PostureTask", cost = 1.0 }]\nlimits = [{ type = "ConfigurationLimit" }]\n'
+    )
+    stack = load_stack(path)
+    settings = stack.settings("mink")
+    assert settings.position_cost == 20.0 and [t["type"] for t in settings.tasks] == ["PostureTask"]
+    robot, motion = hlik.load_robot("armar6"), demo_motion().crop(2.0, 2.4)
+    learned = learn(robot)
+    qp = hlik.retarget(motion, robot, get_solver("qp", stack.settings("qp")), learned=learned)
+    plain = replace(settings, tasks=(), limits=())
+    same = hlik.retarget(motion, robot, get_solver("mink", plain), learned=learned)
+    np.testing.assert_allclose(same.q, qp.q, atol=1e-9)
+    posture = hlik.retarget(motion, robot, get_solver("mink", settings), learned=learned)
+    home = lambda t: np.linalg.norm(t.q - robot.home, axis=1).mean()  # noqa: E731
+    assert posture.solver == "mink" and home(posture) < home(qp)
+    for text, said in (
+        ('[mink]\ntasks = [{ type = "PostureTsk", cost = 1.0 }]', "unknown mink Task 'PostureTsk'"),
+        ('[mink]\ntasks = [{ type = "PostureTask", costs = 1.0 }]', "PostureTask takes no 'costs'"),
+        ('[mink]\nlimits = [{ type = "PostureTask" }]', "unknown mink Limit 'PostureTask'"),
+    ):
+        path.write_text(text)
+        with pytest.raises(SettingsError) as err:
+            load_stack(path)
+        assert str(err.value).startswith(f"{path}: [mink]") and said in str(err.value), str(err.value)

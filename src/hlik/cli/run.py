@@ -33,7 +33,15 @@ from hlik.cli.summary import run_summary
 RobotOpt = Annotated[
     str, typer.Option("--robot", "-r", help="Robot name (see `hlik robots`) or path of a robot .toml.")
 ]
-SolverOpt = Annotated[str, typer.Option("--solver", "-s", help="Retargeting solver: jm, jv, qp or slsqp.")]
+SolverOpt = Annotated[
+    str,
+    typer.Option(
+        "--solver",
+        "-s",
+        help="Retargeting solver: jm, jv, qp, slsqp, or mink (the QP on mink, with a stack's [mink] "
+        "tasks and limits).",
+    ),
+]
 OutOpt = Annotated[
     Path | None,
     typer.Option(

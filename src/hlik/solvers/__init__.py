@@ -5,6 +5,8 @@
 - ``jv``: the paper's Jacobian velocity controller, criteria in the null space (:mod:`~hlik.solvers.jv`).
 - ``qp``: a stack of convex QPs per frame, criteria as least-squares terms (:mod:`~hlik.solvers.qp`).
 - ``slsqp``: the paper's OPT, RelaxedIK groove losses with NLopt's SLSQP (:mod:`~hlik.solvers.slsqp`).
+- ``mink``: the QP's stack solved by mink, with a stack file's own mink tasks and limits
+  (:mod:`~hlik.solvers.mink_stack`).
 
 Beside them: :mod:`~hlik.solvers.mink_tasks` (criteria as mink tasks and limits),
 :mod:`~hlik.solvers.mink_ik` (a solver from any mink stack), :mod:`~hlik.solvers.stack_file`
@@ -17,7 +19,7 @@ from collections.abc import Callable, Mapping
 from types import MappingProxyType
 
 from hlik.errors import UnknownNameError
-from hlik.solvers import jm, jv, qp, slsqp
+from hlik.solvers import jm, jv, mink_stack, qp, slsqp
 from hlik.solvers.base import Diagnostics, Solver, SolverResult
 from hlik.solvers.settings import SolverSettings, SolverSpec
 
@@ -30,6 +32,7 @@ SPECS: Mapping[str, SolverSpec] = MappingProxyType(
             SolverSpec("jv", jv.jv_solver, jv.JVSettings),
             SolverSpec("qp", qp.qp_solver, qp.QPSettings),
             SolverSpec("slsqp", slsqp.slsqp_solver, slsqp.SLSQPSettings),
+            SolverSpec("mink", mink_stack.mink_solver, mink_stack.MinkSettings),
         )
     }
 )

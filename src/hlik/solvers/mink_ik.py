@@ -9,7 +9,7 @@ frame's joint box and (by default) clear of self-collision.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import mink
 import numpy as np
@@ -46,6 +46,7 @@ class MinkSolver:
         self_collision: Keep the robot's collision geoms apart (the QP's rows and margins).
         first_tasks: The first frame's tasks (default: ``tasks``), e.g. without the criteria of
             motion, which have no past there.
+        progress: Called with each frame index as it is solved.
 
     Where no step meets every limit, the step is solved again without the collision rows, then
     within the frame's box alone (its bounds are always feasible), as the QP's soft rows give way
@@ -98,7 +99,9 @@ class MinkSolver:
         motion_limits: LimitSettings | None = None,
         self_collision: bool = True,
         first_tasks: Sequence[mink.Task] | None = None,
+        progress: Callable[[int], None] | None = None,
     ):
+        self.progress = progress
         self.tasks, self.limits = list(tasks), list(limits)
         self.first_tasks = list(first_tasks) if first_tasks is not None else self.tasks
         self.motion_limits = motion_limits or LimitSettings()
@@ -142,7 +145,7 @@ class MinkSolver:
             steps = self.max_iter * (10 if k == 0 else 1)
             return iterate(step, q, box, steps, self.tol, damp_reversals=True)
 
-        return track(problem, solve_frame, limits=MotionLimits.of(robot, self.motion_limits))
+        return track(problem, solve_frame, self.progress, MotionLimits.of(robot, self.motion_limits))
 
     @staticmethod
     def _aim(tasks: Sequence[mink.Task], hands: dict[str, int], sample: Sample) -> None:

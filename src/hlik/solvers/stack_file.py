@@ -23,7 +23,7 @@ from hlik.paths import tasks_dir
 from hlik.tomlfile import read_toml
 
 SCENARIOS = ("pose", "relative")
-SOLVER_TABLES = ("qp", "jv", "slsqp")
+SOLVER_TABLES = ("qp", "jv", "slsqp", "mink")
 
 
 @dataclass(frozen=True)
@@ -52,7 +52,8 @@ class Stack:
     def settings(self, solver: str):
         """The settings object of ``solver`` (``qp``, ``jv``, ``slsqp``) for this stack."""
         cls = settings_class(solver)
-        table = dict(self.solvers.get(solver, {}))
+        # [mink] is the QP on mink: it starts from the [qp] table
+        table = {**(self.solvers.get("qp", {}) if solver == "mink" else {}), **self.solvers.get(solver, {})}
         solver_gamma: Mapping[str, float] = table.pop("gamma", {})  # type: ignore[assignment]
         gamma = MappingProxyType({**cls().gamma, **self.gamma, **solver_gamma})  # onto the solver's own
         return cls(criteria=self.criteria, scenario=self.scenario, gamma=gamma, **table)
@@ -105,12 +106,7 @@ def _parse(raw: dict, path: Path) -> Stack:
         fields = {f.name: f for f in dataclasses.fields(settings_class(solver))}
         _check_keys(table, set(fields) - {"criteria", "scenario"}, path, f"[{solver}]")
         solvers[solver] = MappingProxyType(
-            {
-                k: _gamma(v, path, f"{solver}.gamma")
-                if k == "gamma"
-                else _value(v, fields[k].default, path, f"{solver}.{k}")
-                for k, v in table.items()
-            }
+            {k: _setting(solver, k, v, fields, path) for k, v in table.items()}
         )
     name = raw.get("name", path.stem)
     if not isinstance(name, str) or not name.strip():
@@ -129,6 +125,21 @@ def _parse(raw: dict, path: Path) -> Stack:
             owner = f"{settings_class(solver).__name__}."
             raise SettingsError(f"{path}: [{solver}] {str(e).removeprefix(owner)}") from None
     return stack
+
+
+def _setting(solver: str, key: str, value: object, fields: dict, path: Path) -> object:
+    """One key of a solver's table, checked: ``gamma``, mink's ``tasks``/``limits``, or a value of its
+    field's kind."""
+    if key == "gamma":
+        return _gamma(value, path, f"{solver}.gamma")
+    if solver == "mink" and key in ("tasks", "limits"):
+        from hlik.solvers.mink_stack import check_specs
+
+        try:
+            return check_specs(value, key)
+        except SettingsError as e:
+            raise SettingsError(f"{path}: [mink] {e}") from None
+    return _value(value, fields[key].default, path, f"{solver}.{key}")
 
 
 def _gamma(table: object, path: Path, where: str) -> Mapping[str, float]:
