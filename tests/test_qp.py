@@ -273,3 +273,27 @@ def test_the_qp_stack_on_mink_is_the_qp(name):
     np.testing.assert_array_equal(mink_traj.diagnostics.iterations, qp_traj.diagnostics.iterations)
     with pytest.raises(SettingsError, match="band"):
         MinkSolver.from_settings(r, replace(settings, position_band=0.005), learned)
+
+
+def test_a_users_mink_limit_is_never_dropped_by_the_fallbacks():
+    """MinkSolver's fallbacks (without the collision rows, then the box's bounds alone) drop hlik's
+    rows, never the caller's limits: with a limit no step can meet, every frame after the first
+    fails and says so (it passed for converged when the last fallback was the box alone)."""
+    from mink.limits import Constraint, Limit
+
+    from hlik.solvers.mink_ik import MinkSolver
+
+    r = load_robot("armar6")
+
+    class Impossible(Limit):  # dq_0 >= 1 and dq_0 <= -1
+        def compute_qp_inequalities(self, configuration, dt):
+            g = np.zeros((2, r.dof))
+            g[:, 0] = (-1.0, 1.0)
+            return Constraint(G=g, h=np.array([-1.0, -1.0]))
+
+    motion = demo_motion().crop(2.0, 2.3)
+    hands = [mink.FrameTask(f"{s}_tcp", "site", position_cost=10.0, orientation_cost=2.0) for s in SIDES]
+    traj = retarget(motion, r, MinkSolver(hands, [Impossible()]))
+    assert traj.diagnostics.failed.all() and not traj.diagnostics.converged.any()
+    free = retarget(motion, r, MinkSolver(hands))
+    assert not free.diagnostics.failed.any()

@@ -49,8 +49,12 @@ class MinkSolver:
         progress: Called with each frame index as it is solved.
 
     Where no step meets every limit, the step is solved again without the collision rows, then
-    within the frame's box alone (its bounds are always feasible), as the QP's soft rows give way
-    (:func:`~hlik.solvers.frames.constrained_steps`); mink's limits are hard, so they give way whole.
+    within the frame box's bounds without its torque rows, as the QP's soft rows give way
+    (:func:`~hlik.solvers.frames.constrained_steps`; mink's limits are hard, so they give way
+    whole). ``limits`` are kept in every try: a frame where no step keeps them fails (reported in
+    the diagnostics), it never passes them silently. A ``mink.Limit`` sees positions only, so one
+    tighter than a joint's stops cannot brake ahead of its bound as the frame box does: keep a
+    margin of about v²/(2a) (the joint's speed and acceleration limits) or expect failed frames.
     """
 
     @classmethod
@@ -119,11 +123,12 @@ class MinkSolver:
                 task.cache = cache
         frame_box = FrameBoxLimit(robot.dof, self.max_step)
         collision = SelfCollisionLimit(robot, cache=cache) if self.self_collision else None
-        # the tries of a step: every limit; without the collision rows; the frame's box alone
+        # the tries of a step: every limit; without the collision rows; the box's bounds without its
+        # torque rows. The caller's limits stay in every try: where none keeps them the step fails.
         tries: list[list[mink.Limit]] = (
             [[*self.limits, frame_box, collision]] if collision is not None else []
         )
-        tries += [[*self.limits, frame_box], [BoxOnlyLimit(frame_box)]]
+        tries += [[*self.limits, frame_box], [*self.limits, BoxOnlyLimit(frame_box)]]
 
         def solve_frame(k: int, sample: Sample, q: np.ndarray, box: JointBox) -> FrameResult:
             frame_box.set_box(box)
