@@ -23,10 +23,10 @@ from hlik.problem.placement import (
     mapped_placement,
     reach_placement,
     shoulder_placement,
-    yaw_rotation,
 )
 from hlik.retarget import retarget
 from hlik.robot.model import Robot
+from hlik.rotations import yaw_rotation
 from hlik.solvers.base import Solver
 
 

@@ -1,4 +1,4 @@
-"""Angle differences and the cross product the criteria share. Limitless joints compare by angular
+"""Angle differences the criteria share. Limitless joints compare by angular
 distance (paper, footnote 1)."""
 
 from __future__ import annotations
@@ -15,16 +15,3 @@ def joint_difference(a: np.ndarray, b: np.ndarray, unlimited: np.ndarray) -> np.
     """``a - b`` per joint (..., k), wrapped where ``unlimited`` (k,) is True."""
     d = np.asarray(a) - np.asarray(b)
     return np.where(unlimited, wrap(d), d)
-
-
-def cross(u: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """u x v (..., 3) over the last axis, broadcast; np.cross costs ten times more on the criteria's
-    small arrays."""
-    return np.stack(
-        [
-            u[..., 1] * v[..., 2] - u[..., 2] * v[..., 1],
-            u[..., 2] * v[..., 0] - u[..., 0] * v[..., 2],
-            u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0],
-        ],
-        axis=-1,
-    )

@@ -10,27 +10,15 @@ scenario (:data:`hlik.criteria.unified.FUNCTIONAL_X0`).
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from hlik.criteria.base import Criterion, Sample, block_norm_cost, block_norm_gradient
 from hlik.errors import SettingsError
+from hlik.rotations import rotation_angle, rotation_vector, skew
 
 
 def position_error(pos: np.ndarray, target: np.ndarray) -> np.ndarray:
     """fPOS: (...,) distances between (..., 3) positions and targets, metres."""
     return np.linalg.norm(pos - target, axis=-1)
-
-
-def rotation_angle(rot_a: np.ndarray, rot_b: np.ndarray) -> np.ndarray:
-    """fORI: (...,) angles of ``rot_a^T rot_b`` for (..., 3, 3) rotations, radians in [0, pi]."""
-    rel = np.swapaxes(rot_a, -1, -2) @ rot_b
-    # atan2 of sine and cosine stays exact near 0, where arccos of the trace loses half the digits
-    axis = np.stack(
-        [rel[..., 2, 1] - rel[..., 1, 2], rel[..., 0, 2] - rel[..., 2, 0], rel[..., 1, 0] - rel[..., 0, 1]],
-        -1,
-    )
-    cos = (np.trace(rel, axis1=-2, axis2=-1) - 1.0) / 2.0
-    return np.arctan2(np.linalg.norm(axis, axis=-1) / 2.0, cos)
 
 
 def relative_errors(
@@ -54,32 +42,6 @@ def relative_errors(
     return (
         position_error(right, tcp_pos[..., 1, :]),
         rotation_angle(tcp_rot[..., 0, :, :] @ rel_rot, tcp_rot[..., 1, :, :]),
-    )
-
-
-def rotation_vector(rot: np.ndarray) -> np.ndarray:
-    """(..., 3) axis * angle of rotations (..., 3, 3); closed form, SciPy only near pi."""
-    axis = rot[..., _ROWS, _COLS] - rot[..., _COLS, _ROWS]  # 2 sin(angle) * unit axis
-    sin2 = np.sqrt(np.sum(axis * axis, axis=-1))
-    angle = np.arctan2(sin2, rot[..., 0, 0] + rot[..., 1, 1] + rot[..., 2, 2] - 1.0)
-    if np.max(angle, initial=0.0) > np.pi - 1e-3:
-        return Rotation.from_matrix(rot.reshape(-1, 3, 3)).as_rotvec().reshape(rot.shape[:-1])
-    return axis * np.where(sin2 > 1e-12, angle / np.maximum(sin2, 1e-300), 0.5)[..., None]
-
-
-_ROWS, _COLS = (2, 0, 1), (1, 2, 0)
-
-
-def skew(v: np.ndarray) -> np.ndarray:
-    """(..., 3, 3) cross-product matrices of vectors (..., 3)."""
-    z = np.zeros(v.shape[:-1])
-    return np.stack(
-        [
-            np.stack([z, -v[..., 2], v[..., 1]], -1),
-            np.stack([v[..., 2], z, -v[..., 0]], -1),
-            np.stack([-v[..., 1], v[..., 0], z], -1),
-        ],
-        -2,
     )
 
 

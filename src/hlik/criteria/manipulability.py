@@ -17,13 +17,13 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from hlik.criteria.angles import cross
 from hlik.criteria.base import Criterion, block_norm_gradient
 from hlik.human.kinematics import human_model
 from hlik.human.manipulability import human_tcp_jacobians, velocity_manipulability
 from hlik.human.motion import ARM_JOINTS
 from hlik.robot.model import SIDES, SITES, Robot
 from hlik.robot.state import RobotState
+from hlik.rotations import cross
 
 SITE = SITES.index("manipulability")
 

@@ -43,6 +43,7 @@ from hlik.human.motion import HumanMotion
 from hlik.robot.floor import FLOOR_TOLERANCE, floor_height
 from hlik.robot.model import SIDES, Robot, joint_mapping, tcp_poses
 from hlik.robot.reachability import ReachabilityMap, reachability_map
+from hlik.rotations import yaw_rotation
 
 PLACEMENTS = ("reach", "mapped", "working", "shoulders")
 # the share of the best reach score a base pose of ``working`` must keep: the hands stay well inside
@@ -328,9 +329,3 @@ def placement_from_spec(
     x, y, yaw = values[:3]
     height = values[3] if len(values) == 4 else floor_height(robot)
     return Placement(yaw_rotation(np.radians(yaw)), np.array([x, y, height]), spec)
-
-
-def yaw_rotation(angle: float) -> np.ndarray:
-    """(3, 3) rotation by ``angle`` (rad) about the vertical z axis."""
-    c, s = np.cos(angle), np.sin(angle)
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])

@@ -51,9 +51,5 @@ def _pose_columns(pos: np.ndarray, rot: np.ndarray):
     return rr.Transform3D.columns(translation=pos, quaternion=Rotation.from_matrix(rot).as_quat())
 
 
-def _xyzw(wxyz: np.ndarray) -> np.ndarray:
-    return np.roll(wxyz, -1, axis=-1)
-
-
 def _entity(name: str) -> str:
     return "".join(c if c.isalnum() or c in "_-." else "_" for c in name)

@@ -12,9 +12,10 @@ import rerun as rr
 from hlik.fk import body_poses
 from hlik.human.motion import ObjectMotion
 from hlik.problem.placement import Placement
-from hlik.recording.columns import Columns, Track, _entity, _index, _pose_columns, _xyzw
+from hlik.recording.columns import Columns, Track, _entity, _index, _pose_columns
 from hlik.recording.style import _FILL, SIDE_COLORS, SPACING
 from hlik.robot.model import COLLISION_GROUP, SIDES
+from hlik.rotations import xyzw
 
 
 def _display_placement(placement: Placement, layout: str) -> Placement:
@@ -48,7 +49,7 @@ def _model(
         pos, quat = body_poses(model, qpos(rows))
         index = _index(times, rows)
         for body, entity in bodies:
-            columns = rr.Transform3D.columns(translation=pos[:, body], quaternion=_xyzw(quat[:, body]))
+            columns = rr.Transform3D.columns(translation=pos[:, body], quaternion=xyzw(quat[:, body]))
             yield entity, index, columns
 
     return track
@@ -68,7 +69,7 @@ def _geometry(model: mujoco.MjModel, geoms: list[int], alpha: int) -> dict[str, 
         batch = batches.setdefault(kind, {"quaternions": [], "colors": []})
         for key, value in fields(model.geom_size[g], model.geom_pos[g], rot.reshape(3, 3)).items():
             batch.setdefault(key, []).append(value)
-        batch["quaternions"].append(_xyzw(model.geom_quat[g]))
+        batch["quaternions"].append(xyzw(model.geom_quat[g]))
         batch["colors"].append((*np.round(255 * model.geom_rgba[g, :3]).astype(int), alpha))
     archetypes = {kind: _ARCHETYPES[kind](**batch, fill_mode=_FILL) for kind, batch in batches.items()}
     if meshes:

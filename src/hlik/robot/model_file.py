@@ -34,6 +34,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from hlik.errors import RobotError
+from hlik.rotations import wxyz_from_rpy
 
 VISUAL_GROUP, COLLISION_GROUP = 1, 3  # MJCF geom groups: what a viewer draws, what collides
 PACKAGE = "package://"
@@ -208,10 +209,6 @@ def _vector(toml: Path, value: object, where: str, default: Sequence[float]) -> 
     return np.asarray(value, dtype=float)
 
 
-def _wxyz(rpy: np.ndarray) -> np.ndarray:
-    return np.roll(Rotation.from_euler("xyz", rpy).as_quat(), 1)
-
-
 def _place_base(spec: mujoco.MjSpec, model: mujoco.MjModel, toml: Path, base: Mapping[str, object]) -> None:
     """Put the bodies on the world body at ``[base]``; free joints of a floating base go."""
     pos = _vector(toml, base.get("pos"), "[base] pos", (0, 0, 0))
@@ -275,7 +272,7 @@ def _add_sites(spec: mujoco.MjSpec, toml: Path, sites: Mapping[str, Mapping[str,
             raise RobotError(f"{toml}: {where}: no body {entry['body']!r} in the model")
         pos = _vector(toml, entry.get("pos"), f"{where} pos", (0, 0, 0))
         rpy = _vector(toml, entry.get("rpy"), f"{where} rpy", (0, 0, 0))
-        body.add_site(name=name, pos=pos, quat=_wxyz(rpy))
+        body.add_site(name=name, pos=pos, quat=wxyz_from_rpy(rpy))
 
 
 def _touching_at_home(model: mujoco.MjModel, home: Sequence[float]) -> list[tuple[str, str]]:
