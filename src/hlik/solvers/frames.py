@@ -95,6 +95,17 @@ def track(
     return SolverResult(out, Diagnostics(iterations, converged, failed, seconds))
 
 
+# The first frame starts from the clipped mapped human pose, often far from its targets, and has no
+# past: it gets this many times a frame's steps (SLSQP: its own ``first_eval`` evaluations), the
+# TCP pose targets in ``relative`` and no criteria of motion (each solver builds that stack).
+FIRST_FRAME_STEPS = 10
+
+
+def step_budget(k: int, max_iter: int) -> int:
+    """Steps frame ``k`` may take: :data:`FIRST_FRAME_STEPS` times ``max_iter`` for the first."""
+    return max_iter * (FIRST_FRAME_STEPS if k == 0 else 1)
+
+
 def iterate(
     step: Callable[[np.ndarray], np.ndarray | None],
     q: np.ndarray,

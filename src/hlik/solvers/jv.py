@@ -48,6 +48,7 @@ from hlik.solvers.frames import (
     collision_rows,
     constrained_steps,
     iterate,
+    step_budget,
     track,
 )
 from hlik.solvers.limits import MotionLimits
@@ -468,9 +469,7 @@ def solve(
             taken += 1
             return dq
 
-        return iterate(
-            jv_step, q, box, settings.max_iter * (10 if k == 0 else 1), settings.tol, damp_reversals=True
-        )
+        return iterate(jv_step, q, box, step_budget(k, settings.max_iter), settings.tol, damp_reversals=True)
 
     return track(problem, solve_frame, progress, MotionLimits.of(robot, settings))
 

@@ -20,7 +20,7 @@ from hlik.errors import SettingsError
 from hlik.problem.problem import Problem
 from hlik.robot.model import SIDES, Robot
 from hlik.solvers.base import SolverResult
-from hlik.solvers.frames import FrameResult, JointBox, iterate, track
+from hlik.solvers.frames import FrameResult, JointBox, iterate, step_budget, track
 from hlik.solvers.limits import LimitSettings, MotionLimits
 from hlik.solvers.mink_tasks import BoxOnlyLimit, CriterionTask, FrameBoxLimit, SelfCollisionLimit, StateCache
 from hlik.solvers.qp import QPSettings, build_terms
@@ -147,7 +147,7 @@ class MinkSolver:
                     return v * sample.dt
                 return None
 
-            steps = self.max_iter * (10 if k == 0 else 1)
+            steps = step_budget(k, self.max_iter)
             return iterate(step, q, box, steps, self.tol, damp_reversals=True)
 
         return track(problem, solve_frame, self.progress, MotionLimits.of(robot, self.motion_limits))

@@ -38,6 +38,7 @@ from hlik.solvers.frames import (
     hand_band,
     iterate,
     nearest_band,
+    step_budget,
     track,
 )
 from hlik.solvers.limits import MotionLimits
@@ -266,7 +267,7 @@ def solve(
 
     def solve_frame(k: int, frame: Sample, q: np.ndarray, box: JointBox) -> FrameResult:
         stack = first if k == 0 else terms
-        max_iter = settings.max_iter * (10 if k == 0 else 1)
+        max_iter = step_budget(k, settings.max_iter)
         floors = collision_floors(robot, data, pairs, box, settings, bounds)
         return iterate(
             lambda x: step(robot, stack, x, frame, settings, data, box, pairs, bounds, floors),
