@@ -3,6 +3,7 @@ diagnostics out. Every solver (JM, JV, QP, SLSQP, a mink stack) is a :class:`Sol
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import numbers
 from collections.abc import Callable, Mapping, Sequence
@@ -111,13 +112,19 @@ def check_settings(
     what a stack file would: every listed field a finite number ``>= 0`` (``at_least_zero``),
     ``> 0`` (``positive``), ``<= 0`` (``at_most_zero``), in (0, 1] (``fractions``) or a whole
     number ``>= 1`` (``counts``); the ``scenario``, the ``gamma`` table (criterion -> finite number
-    ``>= 0``) and, where present, ``collision_detect > collision_margin``.
+    ``>= 0``) and, where present, ``collision_detect > collision_margin``. Every weight (a field
+    named ``<what>_cost``) and ``collision_margin`` are ``>= 0`` and ``collision_detect > 0``
+    without being listed.
 
     Raises:
         SettingsError: ``"<Class>.<field> must be ..., got <value>"`` for the first bad field
             (:mod:`hlik.solvers.stack_file` turns it into ``"<file>: [<solver>] <field> ..."``).
     """
     owner = type(settings).__name__
+    weights = tuple(f.name for f in dataclasses.fields(settings) if f.name.endswith("_cost"))  # type: ignore[arg-type]
+    at_least_zero = (*weights, *at_least_zero)
+    if hasattr(settings, "collision_margin"):  # SolverSettings
+        at_least_zero, positive = (*at_least_zero, "collision_margin"), (*positive, "collision_detect")
     if hasattr(settings, "stop_margin"):  # every solver's LimitSettings
         at_least_zero, fractions = (*at_least_zero, "stop_margin"), (*fractions, "torque_fraction")
 

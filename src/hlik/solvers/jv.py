@@ -115,16 +115,8 @@ class JVSettings(SolverSettings):
     def __post_init__(self):
         check_settings(
             self,
-            at_least_zero=(
-                "criterion_cost",
-                "jla_gamma",
-                "damping",
-                "orientation_cost",
-                "collision_margin",
-                "reached_position",
-                "reached_orientation",
-            ),
-            positive=("step", "max_null", "max_step", "tol", "collision_detect"),
+            at_least_zero=("jla_gamma", "damping", "reached_position", "reached_orientation"),
+            positive=("step", "max_null", "max_step", "tol"),
             at_most_zero=("k",),  # k > 0 would climb the null-space cost
             fractions=("rcond", "collision_gain"),
             counts=("max_iter",),

@@ -110,22 +110,8 @@ class QPSettings(SolverSettings):
     def __post_init__(self):
         check_settings(
             self,
-            at_least_zero=(
-                "position_cost",
-                "orientation_cost",
-                "relative_position_cost",
-                "relative_orientation_cost",
-                "criterion_cost",
-                "velocity_cost",
-                "acceleration_cost",
-                "jerk_cost",
-                "trunk_cost",
-                "position_band",
-                "orientation_band",
-                "damping",
-                "collision_margin",
-            ),
-            positive=("tol", "max_step", "collision_detect"),
+            at_least_zero=("position_band", "orientation_band", "damping"),
+            positive=("tol", "max_step"),
             fractions=("collision_gain",),
             counts=("max_iter",),
         )

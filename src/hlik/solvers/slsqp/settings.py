@@ -74,22 +74,8 @@ class SLSQPSettings(SolverSettings):
     def __post_init__(self):
         check_settings(
             self,
-            at_least_zero=(
-                "position_cost",
-                "orientation_cost",
-                "relative_position_cost",
-                "relative_orientation_cost",
-                "velocity_cost",
-                "acceleration_cost",
-                "jerk_cost",
-                "criterion_cost",
-                "trunk_cost",
-                "position_gamma",
-                "collision_margin",
-                "position_band",
-                "orientation_band",
-            ),
-            positive=("fd_step", "collision_detect"),
+            at_least_zero=("position_gamma", "position_band", "orientation_band"),
+            positive=("fd_step",),
             fractions=("ftol_rel",),
             counts=("max_eval", "first_eval", "collision_pairs"),
         )
