@@ -58,11 +58,20 @@ class MinkSolver:
     """
 
     @classmethod
-    def from_settings(cls, robot: Robot, settings: QPSettings, learned: Learned | None = None) -> MinkSolver:
+    def from_settings(
+        cls,
+        robot: Robot,
+        settings: QPSettings,
+        learned: Learned | None = None,
+        tasks: Sequence[mink.Task] = (),
+        limits: Sequence[mink.Limit] = (),
+        progress: Callable[[int], None] | None = None,
+    ) -> MinkSolver:
         """The QP solver's stack on mink: every term of :func:`hlik.solvers.qp.build_terms` (the TCP
         pose or relative pose terms, smoothness, trunk, the criteria, with the QP's weights) as a
         :class:`~hlik.solvers.mink_tasks.CriterionTask`, the first frame's stack as its own, and
-        the QP's stopping rule, step bound, damping, limits and collision margins.
+        the QP's stopping rule, step bound, damping, limits and collision margins; ``tasks`` and
+        ``limits`` (mink's own, or a user's) are added to every frame's.
 
         Raises:
             SettingsError: a hands' band (``position_band``, ``orientation_band``), which this stack
@@ -72,13 +81,13 @@ class MinkSolver:
             raise SettingsError("the hands' band has no mink form here; use --solver qp")
         cache = StateCache(robot)
 
-        def tasks(*args) -> list[mink.Task]:
-            return [
-                CriterionTask(robot, t, cache=cache) for t in build_terms(robot, settings, learned, *args)
-            ]
+        def stack(*args) -> list[mink.Task]:
+            terms = build_terms(robot, settings, learned, *args)
+            return [*(CriterionTask(robot, t, cache=cache) for t in terms), *tasks]
 
         return cls(
-            tasks(),
+            stack(),
+            limits,
             max_iter=settings.max_iter,
             tol=settings.tol,
             max_step=settings.max_step,
@@ -86,7 +95,8 @@ class MinkSolver:
             solver=settings.solver,
             motion_limits=settings,
             self_collision=settings.self_collision,
-            first_tasks=tasks("pose", True),
+            first_tasks=stack("pose", True),
+            progress=progress,
         )
 
     name = "mink"

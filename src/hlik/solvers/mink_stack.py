@@ -106,23 +106,9 @@ def solve(
 ) -> SolverResult:
     """Retarget frame by frame with the QP's stack and the settings' mink objects on mink."""
     robot = problem.robot
-    base = MinkSolver.from_settings(robot, settings, problem.learned)
-    extra_tasks = [t for t in (build(robot, s) for s in settings.tasks) if isinstance(t, mink.Task)]
-    extra_limits = [lim for lim in (build(robot, s) for s in settings.limits) if isinstance(lim, mink.Limit)]
-    solver = MinkSolver(
-        [*base.tasks, *extra_tasks],
-        extra_limits,
-        max_iter=base.max_iter,
-        tol=base.tol,
-        max_step=base.max_step,
-        damping=base.damping,
-        solver=base.solver,
-        motion_limits=settings,
-        self_collision=base.self_collision,
-        first_tasks=[*base.first_tasks, *extra_tasks],
-        progress=progress,
-    )
-    return solver(problem)
+    tasks = [t for t in (build(robot, s) for s in settings.tasks) if isinstance(t, mink.Task)]
+    limits = [lim for lim in (build(robot, s) for s in settings.limits) if isinstance(lim, mink.Limit)]
+    return MinkSolver.from_settings(robot, settings, problem.learned, tasks, limits, progress)(problem)
 
 
 def mink_solver(
