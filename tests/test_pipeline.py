@@ -3,6 +3,8 @@ study."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from typer.testing import CliRunner
@@ -74,7 +76,7 @@ def test_the_command_line_and_a_study_cell_run_the_pipeline(cut_take, tmp_path):
     """The same spec through ``hlik run`` and a study cell gives the library's trajectory."""
     spec = RunSpec(motion=cut_take, robot="armar6", solver="qp", stack="paper_opt", criteria=("HJA_r",))
     cell = Cell(cut_take, "armar6", Approach("qp", ("HJA_r",)), seconds=0.3)
-    result = run(RunSpec(**{**spec.__dict__, "span": (1.0, 1.3)}))
+    result = run(replace(spec, span=(1.0, 1.3)))
     robot = result.robot
     table = run_cell(cell, robot, result.learned)
     np.testing.assert_allclose(table.column("fpos_left").to_numpy(), result.evaluation.fpos[:, 0])
@@ -82,7 +84,7 @@ def test_the_command_line_and_a_study_cell_run_the_pipeline(cut_take, tmp_path):
     args = ["run", str(cut_take), "-r", "armar6", "-s", "qp", "--stack", "paper_opt", "--criteria", "HJA_r"]
     done = CliRunner().invoke(app, [*args, "--rate", "50", "-o", str(out)])
     assert done.exit_code == 0, done.output
-    whole = run(RunSpec(**{**spec.__dict__, "rate": 50.0}), robot=robot, learned=result.learned)
+    whole = run(replace(spec, rate=50.0), robot=robot, learned=result.learned)
     np.testing.assert_array_equal(hlik.load_trajectory(out.with_suffix(".npz")).q, whole.trajectory.q)
 
 

@@ -17,7 +17,6 @@ from hlik.criteria.base import Sample
 from hlik.criteria.functional import position_error, rotation_angle
 from hlik.criteria.learned import Learned
 from hlik.criteria.smoothness import history
-from hlik.errors import SettingsError
 from hlik.executable import ControllerChecks, controller_checks
 from hlik.human.motion import frame_period
 from hlik.posture import Posture, posture
@@ -166,8 +165,7 @@ def evaluate(
 ) -> Evaluation:
     """Costs, scores and the unified metric of ``traj`` (scenario ``pose`` or ``relative``), with
     ``metric``'s weights and x0 (default Table III's)."""
-    if scenario not in unified.FUNCTIONAL_X0:
-        raise SettingsError(f"scenario must be one of {tuple(unified.FUNCTIONAL_X0)}, got {scenario!r}")
+    unified.check_scenario(scenario)
     h = costs(traj, robot, learned)
     metric = metric or unified.Metric.table3()
     x0 = unified.midpoints(scenario, metric)

@@ -19,7 +19,7 @@ from pathlib import Path
 from types import MappingProxyType
 
 from hlik.criteria.learned import Learned, learn
-from hlik.criteria.unified import FUNCTIONAL_X0, load_metric
+from hlik.criteria.unified import check_scenario, load_metric
 from hlik.errors import HlikError
 from hlik.findings import run_warnings
 from hlik.human.load import load_motion
@@ -108,9 +108,7 @@ class RunSpec:
             raise HlikError(f"unknown gradients {self.gradients!r}; choose analytic or fd")
         if self.gradients == "fd" and self.solver != "slsqp":
             raise HlikError("--gradients fd is for --solver slsqp")
-        scenario = self.scenario or stack.scenario
-        if scenario not in FUNCTIONAL_X0:
-            raise HlikError(f"unknown scenario {scenario!r}; choose one of: {', '.join(FUNCTIONAL_X0)}")
+        check_scenario(self.scenario or stack.scenario)
         low, high = RATE_RANGE
         if not (self.rate == 0 or low <= self.rate <= high):  # NaN fails both
             raise HlikError(

@@ -155,10 +155,3 @@ def counting(description: str) -> Iterator[Callable[[int, int], None]]:
     with progress_bar() as bar:
         task = bar.add_task(description, total=None)
         yield lambda k, n: bar.update(task, completed=k, total=n)
-
-
-def check_scenario(scenario: str) -> None:
-    from hlik.criteria.unified import FUNCTIONAL_X0
-
-    if scenario not in FUNCTIONAL_X0:
-        raise HlikError(f"unknown scenario {scenario!r}; choose one of: {', '.join(FUNCTIONAL_X0)}")

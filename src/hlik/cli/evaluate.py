@@ -14,7 +14,6 @@ from hlik.cli.app import (
     CorpusOpt,
     MetricOpt,
     ScenarioOpt,
-    check_scenario,
     console,
     one_line,
     warn,
@@ -36,7 +35,7 @@ def evaluate(
     import json
 
     from hlik.criteria.learned import learn
-    from hlik.criteria.unified import load_metric, midpoints
+    from hlik.criteria.unified import check_scenario, load_metric, midpoints
     from hlik.errors import RobotError
     from hlik.metrics import evaluate as evaluate_trajectory
     from hlik.robot.model import load_robot

@@ -16,7 +16,7 @@ from types import MappingProxyType
 import numpy as np
 
 from hlik.criteria import registry
-from hlik.errors import HlikError
+from hlik.errors import HlikError, SettingsError
 from hlik.tomlfile import read_toml
 
 # Sec. V: functional criteria and their mid-points, per scenario.
@@ -29,6 +29,13 @@ FUNCTIONAL_X0: Mapping[str, Mapping[str, float]] = MappingProxyType(
     }
 )
 ALPHA = 0.5
+
+
+def check_scenario(scenario: str) -> None:
+    """Raises:
+    SettingsError: ``scenario`` is none of :data:`FUNCTIONAL_X0`'s (``pose``, ``relative``)."""
+    if scenario not in FUNCTIONAL_X0:
+        raise SettingsError(f"unknown scenario {scenario!r}; choose one of: {', '.join(FUNCTIONAL_X0)}")
 
 
 def midpoints(scenario: str = "pose", metric: Metric | None = None) -> dict[str, float]:
