@@ -136,7 +136,8 @@ def test_jv_keeps_the_arms_out_of_the_body_on_a_kit_take(takes, scenario):
     unlimited = replace(settings, self_collision=False, stop_margin=0.0, acceleration_limits=False)
     free = retarget(motion, r, jv.jv_solver(unlimited), placement)
     traj = retarget(motion, r, jv.jv_solver(settings), placement)
-    assert np.mean(collision_frames(free, r)) > 0.3  # 46 % of frames (pose and relative)
+    # 46 % of frames (pose); relative 15-46 %, by the machine's rounding (the free arm drifts)
+    assert np.mean(collision_frames(free, r)) > 0.1
     assert not np.any(collision_frames(traj, r)) and np.all(np.isfinite(traj.q))
     # within the acceleration limits the hands take a few tenths of a second to reach the pose
     assert np.mean(traj.diagnostics.converged) > 0.9

@@ -21,7 +21,7 @@ from hlik.problem.placement import shoulder_placement
 from hlik.problem.targets import HandTargets, hand_targets
 from hlik.robot.model import SIDES, joint_mapping, tcp_poses
 from hlik.robot.state import robot_state
-from hlik.solvers import get_solver, qp
+from hlik.solvers import qp
 from hlik.solvers.mink_tasks import CriterionTask, HumanJointLimit
 from hlik.solvers.qp import QPSettings, qp_solver, solve
 from hlik.solvers.stack_file import load_stack
@@ -255,28 +255,56 @@ def test_the_band_moves_a_robot_that_starts_far_from_its_targets(takes, name):
 
 
 @pytest.mark.parametrize("name", ["armar3", "armar6", "dual_panda"])
-def test_the_qp_stack_on_mink_is_the_qp(name):
-    """MinkSolver.from_settings solves the QP's own stack (every term a CriterionTask, the first
-    frame's stack, the frame box, collision rows, stopping rule) through mink.solve_ik: the same
-    joint angles as the QP solver, step for step, where no soft row is needed; a band it has no
-    rows for is refused."""
-    from hlik.errors import SettingsError
-    from hlik.solvers.mink_ik import MinkSolver
+def test_the_qp_is_its_stack_of_least_squares_terms_on_mink(name):
+    """The QP (:func:`qp.build_solver`: every term a CriterionTask, solved by MinkSolver) steps with
+    mink's objective, which equals the stack written out by hand, ``H = damping I + sum (W J)'(W J)``,
+    ``g = sum (W J)'(W e)`` over :func:`qp.build_terms`, the first frame's stack and the others';
+    the hands' band is a HandBandLimit whose rows bound each target term's weighted error."""
+    from hlik.solvers.mink_tasks import HandBandLimit
 
     r = load_robot(name)
     learned = learn(r)
-    settings = load_stack("ee_pose").with_criteria(["SYN", "HJA_r", "MJE"]).settings("qp")
-    motion = demo_motion().crop(2.0, 2.6)
-    qp_traj = retarget(motion, r, get_solver("qp", settings), learned=learned)
-    mink_traj = retarget(motion, r, MinkSolver.from_settings(r, settings, learned), learned=learned)
-    np.testing.assert_allclose(mink_traj.q, qp_traj.q, atol=1e-9)
-    np.testing.assert_array_equal(mink_traj.diagnostics.iterations, qp_traj.diagnostics.iterations)
-    with pytest.raises(SettingsError, match="band"):
-        MinkSolver.from_settings(r, replace(settings, position_band=0.005), learned)
+    settings = replace(
+        load_stack("ee_pose").with_criteria(["SYN", "HJA_r", "MJE"]).settings("qp"),
+        position_band=0.005,
+        orientation_band=0.05,
+    )
+    solver = qp.build_solver(r, settings, learned)
+    rng = np.random.default_rng(0)
+    q = np.clip(r.home + rng.normal(0, 0.2, r.dof), r.lower, r.upper)
+    frame = _frame(r, np.clip(q + rng.normal(0, 0.1, r.dof), r.lower, r.upper))
+    config = mink.Configuration(r.model, q)
+    state = robot_state(r, q, jacobians=True)
+    for first, tasks in ((True, solver.first_tasks), (False, solver.tasks)):
+        terms = qp.build_terms(r, settings, learned, "pose" if first else None, first=first)
+        assert [type(t.term) for t in tasks] == [type(t) for t in terms]
+        for task in tasks:
+            task.set_sample(frame)
+        objective = mink.build_ik(config, tasks, frame.dt, settings.damping, limits=[])
+        hessian, gradient = settings.damping * np.eye(r.dof), np.zeros(r.dof)
+        for term in terms:
+            e, jac = term(state, frame)
+            w = np.broadcast_to(np.asarray(term.cost_weight, dtype=float), e.shape)
+            hessian += (w[:, None] * jac).T @ (w[:, None] * jac)
+            gradient += (w[:, None] * jac).T @ (w * e)
+        np.testing.assert_allclose(objective.P, hessian, rtol=1e-9, atol=1e-9)
+        np.testing.assert_allclose(objective.q, gradient, rtol=1e-9, atol=1e-9)
+        (band,) = [lim for lim in solver.limits if isinstance(lim, HandBandLimit)]
+        band.set_tasks(tasks)
+        rows = band.compute_qp_inequalities(config, frame.dt)
+        dq = rng.normal(0, 1e-3, r.dof)
+        for (task, b), g, h in zip(
+            band.tasks, np.split(rows.G, len(band.tasks)), np.split(rows.h, len(band.tasks))
+        ):
+            e, jac = task.term(state, frame)
+            w = np.asarray(task.cost)
+            inside = np.all(np.abs(w * (e + jac @ dq)) <= w * b / np.sqrt(3.0) + 1e-12)
+            assert np.all(g @ dq <= h + 1e-12) == inside
+        assert {type(t.term) for t, _ in band.tasks} == {fPOS, fORI}
 
 
 def test_a_users_mink_limit_is_never_dropped_by_the_fallbacks():
-    """MinkSolver's fallbacks (without the collision rows, then the box's bounds alone) drop hlik's
+    """MinkSolver's fallbacks (the collision rows, then the torque rows soft) give way on hlik's
     rows, never the caller's limits: with a limit no step can meet, every frame after the first
     fails and says so (it passed for converged when the last fallback was the box alone)."""
     from mink.limits import Constraint, Limit

@@ -304,8 +304,11 @@ def test_an_nlopt_exception_keeps_the_best_configuration_evaluated(monkeypatch, 
 
     monkeypatch.setattr(nlopt.opt, "optimize", raising)
     q, info = solve_problem(solve, r, motion, targets, placement)
-    code = nlopt.ROUNDOFF_LIMITED if error is nlopt.RoundoffLimited else nlopt.FAILURE
-    assert tuple(np.flatnonzero(info.diagnostics.failed)) == (3,) and info.info["status"][3] == code
+    # NLopt's roundoff limit "still typically returns a useful result": unconverged, not failed
+    roundoff = error is nlopt.RoundoffLimited
+    code = nlopt.ROUNDOFF_LIMITED if roundoff else nlopt.FAILURE
+    assert tuple(np.flatnonzero(info.diagnostics.failed)) == (() if roundoff else (3,))
+    assert info.info["status"][3] == code and not info.diagnostics.converged[3]
     assert np.all(np.isfinite(q))
     # the best point SLSQP evaluated is (nearly) the optimum it would have returned
     np.testing.assert_allclose(q, reference, atol=1e-6)

@@ -175,17 +175,21 @@ def constrained_steps(
     b_col: np.ndarray,
     a_band: np.ndarray | None = None,
     b_band: np.ndarray | None = None,
+    a_hard: np.ndarray | None = None,
+    b_hard: np.ndarray | None = None,
 ) -> list[StepConstraints]:
     """What a step from ``q`` (n,) inside ``box`` tries to keep, in order: (1) every row, the box's
-    (torque), the collision rows ``a_col``, ``b_col`` (k, n), (k,) (:func:`collision_rows`) and the
-    hands' band (below); where no step meets them, (2) every row but the band's (the body before
-    the hands); then (3) the collision rows soft (missed as little as the box and the
-    torque rows allow: a pair the limits cannot pull back to its floor in time brakes, or backs
-    out of the margin, as hard as they let it), then (4) the torque rows soft too, at a lower
-    penalty (the body before the torque). (4) is always feasible. The QP and JV take the first
-    their solver can meet. The box itself always holds: an acceleration limit given up for the
-    margin was a jump of 40 times the limit, for a miss of the margin by 0.1 mm; and a collision
-    row relaxed to "no worse than the step's start" let the arm coast into the body at its speed.
+    (torque), a caller's hard rows ``a_hard``, ``b_hard`` (a user's ``mink.Limit``), the collision
+    rows ``a_col``, ``b_col`` (k, n), (k,) (:func:`collision_rows`) and the hands' band (below);
+    where no step meets them, (2) every row but the band's (the body before the hands); then (3)
+    the collision rows soft (missed as little as the box and the torque rows allow: a pair the
+    limits cannot pull back to its floor in time brakes, or backs out of the margin, as hard as
+    they let it), then (4) the torque rows soft too, at a lower penalty (the body before the
+    torque). Without hard rows (4) is always feasible; the hard rows hold in every try, so where
+    none keeps them there is no step. The QP and JV take the first their solver can meet. The box
+    itself always holds: an acceleration limit given up for the margin was a jump of 40 times the
+    limit, for a miss of the margin by 0.1 mm; and a collision row relaxed to "no worse than the
+    step's start" let the arm coast into the body at its speed.
 
     The hands' band ``a_band``, ``b_band`` (k, n), (k,) is the first try's, as hard rows; where it
     is out of a step's reach, the QP moves its bound out by as little
@@ -194,18 +198,45 @@ def constrained_steps(
     a robot started 0.6 m from its targets never moved."""
     lower, upper = box.step_bounds(q, max_step)
     a_box, b_box = box.step_rows(q)
-    a, b = np.vstack([a_box, a_col]), np.concatenate([b_box, b_col])
+    if a_hard is None or b_hard is None:
+        a_hard, b_hard = np.zeros((0, len(q))), np.zeros(0)
+    a, b = np.vstack([a_box, a_hard, a_col]), np.concatenate([b_box, b_hard, b_col])
     tries = []
     if a_band is not None and b_band is not None:
         tries.append(StepConstraints(lower, upper, np.vstack([a, a_band]), np.concatenate([b, b_band])))
     tries.append(StepConstraints(lower, upper, a, b))
-    hard, collision = np.zeros(len(b_box)), np.full(len(b_col), COLLISION_PENALTY)
+    box_rows, hard = np.zeros(len(b_box)), np.zeros(len(b_hard))
+    collision = np.full(len(b_col), COLLISION_PENALTY)
     if len(b_col):
-        tries.append(StepConstraints(lower, upper, a, b, np.concatenate([hard, collision])))
+        tries.append(StepConstraints(lower, upper, a, b, np.concatenate([box_rows, hard, collision])))
     if len(b_box):
         torque = np.full(len(b_box), TORQUE_PENALTY)
-        tries.append(StepConstraints(lower, upper, a, b, np.concatenate([torque, collision])))
+        tries.append(StepConstraints(lower, upper, a, b, np.concatenate([torque, hard, collision])))
     return tries
+
+
+def solve_step(
+    hessian: np.ndarray,
+    gradient: np.ndarray,
+    tries: list[StepConstraints],
+    solver: str,
+    band_rows: int = 0,
+) -> np.ndarray | None:
+    """The step dq (n,) minimising ``1/2 dq' H dq + g' dq`` under the first of ``tries``
+    (:func:`constrained_steps`) the QP solver can meet, or None where it meets none. With
+    ``band_rows`` > 0 the first try ends in that many rows of the hands' band; where no step keeps
+    them, the step keeps the band as near as the rest allows (:func:`nearest_band`), before the
+    tries without it."""
+    for k, c in enumerate(tries):
+        dq = solve_qp(hessian, gradient, c.lower, c.upper, solver, c.rows, c.bound, c.soft)
+        if dq is None and k == 0 and band_rows:
+            nearest = nearest_band(c, band_rows, solver)
+            if nearest is not None:
+                dq = solve_qp(hessian, gradient, c.lower, c.upper, solver, c.rows, nearest)
+        if dq is not None:
+            # no step found: the frame stays where it is, failed (limits hold, nothing NaN)
+            return dq if np.all(np.isfinite(dq)) else None
+    return None
 
 
 def hand_band(term: Term, settings) -> float:

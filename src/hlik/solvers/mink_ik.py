@@ -1,10 +1,13 @@
-"""Retarget with a plain ``mink.solve_ik`` over any mix of mink's tasks and hlik's criterion tasks.
+"""Retarget with mink: per frame, mink's QP over any mix of mink's tasks and hlik's criterion tasks.
 
-:class:`MinkSolver` is the glue a user-composed stack needs: per frame it points every
-``mink.FrameTask`` on a ``left_tcp`` / ``right_tcp`` site at the hand targets, gives every
-:class:`hlik.solvers.mink_tasks.CriterionTask` the frame's context, and integrates ``solve_ik``,
-warm-started from the previous frame, iterated to convergence with the QP's rule, inside the
-frame's joint box and (by default) clear of self-collision.
+:class:`MinkSolver` is the one per-frame QP of hlik (``--solver qp`` is it with the QP's stack,
+:func:`hlik.solvers.qp.build_solver`; ``--solver mink`` that stack with a stack file's own mink
+tasks and limits). Per frame it points every ``mink.FrameTask`` on a ``left_tcp`` / ``right_tcp``
+site at the hand targets, gives every :class:`hlik.solvers.mink_tasks.CriterionTask` the frame's
+context, and steps from the previous frame's solution until it converges, each step mink's
+objective (``mink.build_ik``) under the frame's joint box, the limits, self-collision rows and the
+hands' band, with the rows that give way where no step keeps them all
+(:func:`hlik.solvers.frames.constrained_steps`).
 """
 
 from __future__ import annotations
@@ -15,15 +18,20 @@ import mink
 import numpy as np
 
 from hlik.criteria.base import Sample
-from hlik.criteria.learned import Learned
-from hlik.errors import SettingsError
 from hlik.problem.problem import Problem
-from hlik.robot.model import SIDES, Robot
+from hlik.robot.model import SIDES
 from hlik.solvers.base import SolverResult
-from hlik.solvers.frames import FrameResult, JointBox, iterate, step_budget, track
+from hlik.solvers.frames import (
+    FrameResult,
+    JointBox,
+    constrained_steps,
+    iterate,
+    solve_step,
+    step_budget,
+    track,
+)
 from hlik.solvers.limits import LimitSettings, MotionLimits
-from hlik.solvers.mink_tasks import BoxOnlyLimit, CriterionTask, FrameBoxLimit, SelfCollisionLimit, StateCache
-from hlik.solvers.qp import QPSettings, build_terms
+from hlik.solvers.mink_tasks import CriterionTask, HandBandLimit, SelfCollisionLimit, StateCache
 
 
 class MinkSolver:
@@ -32,72 +40,31 @@ class MinkSolver:
     Args:
         tasks: mink tasks; ``FrameTask`` on ``<side>_tcp`` sites follow the hands. The
             :class:`~hlik.solvers.mink_tasks.CriterionTask`\ s share one kinematics pass per step.
-        limits: mink limits (e.g. ``ConfigurationLimit``, :class:`hlik.solvers.mink_tasks.HumanJointLimit`);
-            each frame's joint box (:mod:`hlik.solvers.limits`, what every hlik solver keeps) is
-            added as a :class:`hlik.solvers.mink_tasks.FrameBoxLimit`, and with ``self_collision``
-            hlik's :class:`~hlik.solvers.mink_tasks.SelfCollisionLimit`.
-        max_iter: ``solve_ik`` steps per frame at most (the first frame gets ten times more).
-        tol: A frame has converged when no joint moves more than this in a step, rad (the QP's
-            rule, :func:`~hlik.solvers.frames.iterate`, reversals damped).
+        limits: mink limits (e.g. ``ConfigurationLimit``, :class:`hlik.solvers.mink_tasks.HumanJointLimit`),
+            kept in every step; a :class:`~hlik.solvers.mink_tasks.HandBandLimit` is the hands'
+            band, kept where a step can and otherwise as nearly as the rest allows. Each frame's
+            joint box (:mod:`hlik.solvers.limits`, what every hlik solver keeps: stops with their
+            margin, speed, acceleration, braking, torque) bounds every step.
+        max_iter: Steps per frame at most (the first frame gets ten times more).
+        tol: A frame has converged when no joint moves more than this in a step, rad
+            (:func:`~hlik.solvers.frames.iterate`, reversals damped).
         max_step: Bound on any joint's change in one step, rad.
-        damping: Levenberg-Marquardt damping of ``solve_ik``.
-        solver: qpsolvers backend.
+        damping: Levenberg-Marquardt damping of every step (``mink.build_ik``).
+        solver: QP backend (:func:`hlik.solvers.qp_backend.solve_qp`: daqp, or a qpsolvers name).
         motion_limits: Stop margin, acceleration and torque limits of the frame box.
-        self_collision: Keep the robot's collision geoms apart (the QP's rows and margins).
+        self_collision: Keep the robot's collision geoms apart
+            (:class:`~hlik.solvers.mink_tasks.SelfCollisionLimit`, the velocity damper with braking).
         first_tasks: The first frame's tasks (default: ``tasks``), e.g. without the criteria of
             motion, which have no past there.
         progress: Called with each frame index as it is solved.
 
-    Where no step meets every limit, the step is solved again without the collision rows, then
-    within the frame box's bounds without its torque rows, as the QP's soft rows give way
-    (:func:`~hlik.solvers.frames.constrained_steps`; mink's limits are hard, so they give way
-    whole). ``limits`` are kept in every try: a frame where no step keeps them fails (reported in
-    the diagnostics), it never passes them silently. A ``mink.Limit`` sees positions only, so one
-    tighter than a joint's stops cannot brake ahead of its bound as the frame box does: keep a
-    margin of about v²/(2a) (the joint's speed and acceleration limits) or expect failed frames.
+    Where no step keeps every row, the collision rows give way first (missed as little as the rest
+    allows), then the box's torque rows; the box's bounds and ``limits`` hold in every step, so a
+    frame where no step keeps them fails (reported in the diagnostics), it never passes them
+    silently. A ``mink.Limit`` sees positions only, so one tighter than a joint's stops cannot brake
+    ahead of its bound as the frame box does: keep a margin of about v²/(2a) (the joint's speed
+    and acceleration limits) or expect failed frames.
     """
-
-    @classmethod
-    def from_settings(
-        cls,
-        robot: Robot,
-        settings: QPSettings,
-        learned: Learned | None = None,
-        tasks: Sequence[mink.Task] = (),
-        limits: Sequence[mink.Limit] = (),
-        progress: Callable[[int], None] | None = None,
-    ) -> MinkSolver:
-        """The QP solver's stack on mink: every term of :func:`hlik.solvers.qp.build_terms` (the TCP
-        pose or relative pose terms, smoothness, trunk, the criteria, with the QP's weights) as a
-        :class:`~hlik.solvers.mink_tasks.CriterionTask`, the first frame's stack as its own, and
-        the QP's stopping rule, step bound, damping, limits and collision margins; ``tasks`` and
-        ``limits`` (mink's own, or a user's) are added to every frame's.
-
-        Raises:
-            SettingsError: a hands' band (``position_band``, ``orientation_band``), which this stack
-                has no rows for.
-        """
-        if settings.position_band > 0 or settings.orientation_band > 0:
-            raise SettingsError("the hands' band has no mink form here; use --solver qp")
-        cache = StateCache(robot)
-
-        def stack(*args) -> list[mink.Task]:
-            terms = build_terms(robot, settings, learned, *args)
-            return [*(CriterionTask(robot, t, cache=cache) for t in terms), *tasks]
-
-        return cls(
-            stack(),
-            limits,
-            max_iter=settings.max_iter,
-            tol=settings.tol,
-            max_step=settings.max_step,
-            damping=settings.damping,
-            solver=settings.solver,
-            motion_limits=settings,
-            self_collision=settings.self_collision,
-            first_tasks=stack("pose", True),
-            progress=progress,
-        )
 
     name = "mink"
 
@@ -127,35 +94,37 @@ class MinkSolver:
         robot = problem.robot
         config = mink.Configuration(robot.model)
         hands = {f"{side}_tcp": i for i, side in enumerate(SIDES)}
-        cache = StateCache(robot)
-        for task in {id(t): t for t in (*self.tasks, *self.first_tasks)}.values():
-            if isinstance(task, CriterionTask) and task.robot is robot:
-                task.cache = cache
-        frame_box = FrameBoxLimit(robot.dof, self.max_step)
+        criteria = [
+            t
+            for t in {id(t): t for t in (*self.tasks, *self.first_tasks)}.values()
+            if isinstance(t, CriterionTask) and t.robot is robot
+        ]
+        # one kinematics pass per step for every criterion task, with the site Jacobians they read
+        cache = StateCache(robot, tuple(sorted({i for t in criteria for i in t.term.sites})))
+        for task in criteria:
+            task.cache = cache
         collision = SelfCollisionLimit(robot, cache=cache) if self.self_collision else None
-        # the tries of a step: every limit; without the collision rows; the box's bounds without its
-        # torque rows. The caller's limits stay in every try: where none keeps them the step fails.
-        tries: list[list[mink.Limit]] = (
-            [[*self.limits, frame_box, collision]] if collision is not None else []
-        )
-        tries += [[*self.limits, frame_box], [*self.limits, BoxOnlyLimit(frame_box)]]
+        band = [lim for lim in self.limits if isinstance(lim, HandBandLimit)]
+        hard = [lim for lim in self.limits if not isinstance(lim, HandBandLimit)]
+        n = robot.dof
 
         def solve_frame(k: int, sample: Sample, q: np.ndarray, box: JointBox) -> FrameResult:
-            frame_box.set_box(box)
             if collision is not None:
                 collision.set_box(box)
             tasks = self.first_tasks if k == 0 else self.tasks
             self._aim(tasks, hands, sample)
+            for limit in band:
+                limit.set_tasks(tasks)
 
             def step(x: np.ndarray) -> np.ndarray | None:
                 config.update(x)
-                for limits in tries:
-                    try:
-                        v = mink.solve_ik(config, tasks, sample.dt, self.solver, self.damping, limits=limits)
-                    except mink.exceptions.NoSolutionFound:
-                        continue
-                    return v * sample.dt
-                return None
+                objective = mink.build_ik(config, tasks, sample.dt, self.damping, limits=[])
+                a_hard, b_hard = _rows(hard, config, sample.dt, n)
+                a_col, b_col = _rows([collision] if collision else [], config, sample.dt, n)
+                a_band, b_band = _rows(band, config, sample.dt, n) if band else (None, None)
+                tries = constrained_steps(box, x, self.max_step, a_col, b_col, a_band, b_band, a_hard, b_hard)
+                n_band = 0 if b_band is None else len(b_band)
+                return solve_step(objective.P, objective.q, tries, self.solver, n_band)
 
             steps = step_budget(k, self.max_iter)
             return iterate(step, q, box, steps, self.tol, damp_reversals=True)
@@ -172,3 +141,17 @@ class MinkSolver:
                 task.set_target(mink.SE3.from_rotation_and_translation(rot, sample.target_pos[0, i]))
             elif isinstance(task, CriterionTask):
                 task.set_sample(sample)
+
+
+def _rows(
+    limits: Sequence[mink.Limit], config: mink.Configuration, dt: float, n: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """The inequality rows ``G dq <= h`` of ``limits`` at ``config``, stacked: (k, n), (k,)."""
+    g: list[np.ndarray] = [np.zeros((0, n))]
+    h: list[np.ndarray] = [np.zeros(0)]
+    for limit in limits:
+        c = limit.compute_qp_inequalities(config, dt)
+        if c.G is not None and c.h is not None:  # mink's Constraint.inactive
+            g.append(c.G)
+            h.append(c.h)
+    return np.vstack(g), np.concatenate(h)

@@ -9,8 +9,7 @@ and two lists naming mink's classes with their parameters::
 
 A class whose constructor takes the model gets the robot's; a ``PostureTask`` aims at the robot's
 home unless ``target`` gives the configuration. hlik's own terms and limits
-come from :meth:`MinkSolver.from_settings <hlik.solvers.mink_ik.MinkSolver.from_settings>`: the
-QP's joint angles, to 1e-9 rad, without extra tasks.
+come from :func:`hlik.solvers.qp.build_solver`: without extra tasks and limits, the QP itself.
 """
 
 from __future__ import annotations
@@ -26,8 +25,7 @@ from hlik.errors import SettingsError
 from hlik.problem.problem import Problem
 from hlik.robot.model import Robot
 from hlik.solvers.base import ConfiguredSolver, SolverResult
-from hlik.solvers.mink_ik import MinkSolver
-from hlik.solvers.qp import QPSettings
+from hlik.solvers.qp import QPSettings, build_solver
 
 KINDS = {"tasks": mink.Task, "limits": mink.Limit}
 
@@ -108,7 +106,7 @@ def solve(
     robot = problem.robot
     tasks = [t for t in (build(robot, s) for s in settings.tasks) if isinstance(t, mink.Task)]
     limits = [lim for lim in (build(robot, s) for s in settings.limits) if isinstance(lim, mink.Limit)]
-    return MinkSolver.from_settings(robot, settings, problem.learned, tasks, limits, progress)(problem)
+    return build_solver(robot, settings, problem.learned, tasks, limits, progress)(problem)
 
 
 def mink_solver(

@@ -22,23 +22,28 @@ from hlik.criteria.joints import human_limits
 from hlik.criteria.learned import Learned
 from hlik.robot.collision import DistanceBounds, collision_pairs
 from hlik.robot.model import Robot
-from hlik.robot.state import RobotState, robot_state
-from hlik.solvers.frames import JointBox, collision_floors, collision_rows
+from hlik.robot.state import SITES, RobotState, robot_state
+from hlik.solvers.frames import JointBox, collision_floors, collision_rows, hand_band
 
 
 class StateCache:
     r"""One kinematics pass per configuration, shared by the :class:`CriterionTask`\ s of a stack
-    (mink asks every task on its own; each would run forward kinematics and site Jacobians)."""
+    (mink asks every task on its own; each would run forward kinematics and site Jacobians).
+    ``sites``: the site Jacobians computed (indices into :data:`hlik.robot.state.SITES`; default
+    all), the others left zero."""
 
-    def __init__(self, robot: Robot):
+    def __init__(self, robot: Robot, sites: tuple[int, ...] | None = None):
         self.robot, self.data = robot, mujoco.MjData(robot.model)
+        self.sites = tuple(range(len(SITES))) if sites is None else sites
         self._key: bytes | None = None
         self._state: RobotState | None = None
 
     def state(self, q: np.ndarray) -> RobotState:
         key = np.asarray(q, dtype=float).tobytes()
         if key != self._key or self._state is None:
-            self._state = robot_state(self.robot, q, jacobians=True, data=self.data)
+            self._state = robot_state(
+                self.robot, q, jacobians=True, data=self.data, jacobian_sites=self.sites
+            )
             self._key = key
         return self._state
 
@@ -59,6 +64,7 @@ class CriterionTask(mink.Task):
         self.robot, self.term = robot, term
         self.sample: Sample | None = None
         self._scale = float(cost)
+        self._weight: object = None  # the term weight self.cost was made from
         self.cache = cache or StateCache(robot)
         super().__init__(cost=np.ones(0), gain=gain, lm_damping=lm_damping)
 
@@ -86,7 +92,9 @@ class CriterionTask(mink.Task):
             raise mink.exceptions.TargetNotSet(type(self).__name__)
         e, jac = self.term(self.cache.state(configuration.q), self.sample)  # type: ignore[arg-type]  # None only if not needed
         # mink reads the cost vector's length as the task dimension
-        self.cost = self._scale * np.broadcast_to(self.term.cost_weight, e.shape).astype(float)
+        if self.term.cost_weight is not self._weight or self.cost.shape != e.shape:
+            self._weight = self.term.cost_weight
+            self.cost = self._scale * np.broadcast_to(self.term.cost_weight, e.shape).astype(float)
         return e, jac
 
 
@@ -132,23 +140,37 @@ class FrameBoxLimit(Limit):
         return Constraint(G=g, h=np.concatenate([high[upper], -low[lower], bound]))
 
 
-class BoxOnlyLimit(Limit):
-    """The bounds of a :class:`FrameBoxLimit`'s box without its rows (the torque rows): always
-    feasible, since a joint outside its box may move back or stay."""
+class HandBandLimit(Limit):
+    r"""The hands' tolerance band as a ``mink.Limit`` (RangedIK's ranged goals): after the step, each
+    hand target task's error stays within ``position_band`` (m) or ``orientation_band`` (rad),
+    component by component within band / sqrt(3) so that its norm does, as the linear rows
+    ``-b <= w (e + J dq) <= b`` in the task's weighted units. The target tasks are the
+    :class:`CriterionTask`\ s of the frame's stack on fPOS, fORI, fPOS^off or fORI^off
+    (:meth:`set_tasks`). :class:`hlik.solvers.mink_ik.MinkSolver` keeps it where a step can and,
+    where none can, moves the bound out by as little as its other rows allow
+    (:func:`hlik.solvers.frames.nearest_band`); in a plain ``mink.solve_ik`` it is a hard limit."""
 
-    def __init__(self, frame_box: FrameBoxLimit):
-        self.frame_box = frame_box
+    def __init__(self, position_band: float = 0.0, orientation_band: float = 0.0):
+        self.position_band, self.orientation_band = float(position_band), float(orientation_band)
+        self.tasks: list[tuple[CriterionTask, float]] = []
+
+    def set_tasks(self, tasks) -> None:
+        """Bound the target tasks among ``tasks`` (the frame's stack)."""
+        self.tasks = [
+            (t, band) for t in tasks if isinstance(t, CriterionTask) and (band := hand_band(t.term, self)) > 0
+        ]
 
     def compute_qp_inequalities(self, configuration: mink.Configuration, dt: float) -> Constraint:
-        box = self.frame_box.box
-        if box is None:
+        if not self.tasks:
             return Constraint()
-        eye = np.eye(self.frame_box.n)
-        low, high = box.step_bounds(configuration.q, self.frame_box.max_step)
-        upper, lower = np.isfinite(high), np.isfinite(low)
-        return Constraint(
-            G=np.vstack([eye[upper], -eye[lower]]), h=np.concatenate([high[upper], -low[lower]])
-        )
+        rows, bounds = [], []
+        for task, band in self.tasks:
+            e, jac = task._residual(configuration)
+            w = np.asarray(task.cost, dtype=float)
+            b = w * band / np.sqrt(3.0)
+            rows += [w[:, None] * jac, -w[:, None] * jac]
+            bounds += [b - w * e, b + w * e]
+        return Constraint(G=np.vstack(rows), h=np.concatenate(bounds))
 
 
 class SelfCollisionLimit(Limit):

@@ -1,11 +1,12 @@
-"""QP retargeting: per frame, repeated convex QP steps over a stack of least-squares terms.
+"""QP retargeting: per frame, repeated convex QP steps over a stack of least-squares terms, on mink.
 
-Each step minimises ``sum_i ||c_i (J_i dq + e_i)||^2 + damping ||dq||^2`` subject to the joint
-limits (and a step bound), the stack being the two TCP pose terms, smoothness toward the previous
-frames and the chosen human-likeness criteria (:mod:`hlik.terms`). All residuals and Jacobians come
-from one forward-kinematics pass and are stacked into a single problem for the QP solver (daqp by
-default), so no per-task Python objects are built per step. Frames are warm-started from the
-previous solution; a frame stops when the step is below ``tol`` or after ``max_iter`` steps.
+Each step minimises ``sum_i ||c_i (J_i dq + e_i)||^2 + damping ||dq||^2`` subject to the frame's
+joint box (stops, speed, acceleration, torque), a step bound, self-collision rows and the hands'
+band if set; the stack is the two TCP pose terms (or the hands' relative pose), smoothness toward
+the previous frames and the chosen human-likeness criteria, each a ``mink.Task``
+(:class:`~hlik.solvers.mink_tasks.CriterionTask`), solved by :class:`~hlik.solvers.mink_ik.MinkSolver`
+(mink's ``build_ik``, daqp by default). Frames are warm-started from the previous solution; a frame
+stops when no joint moves more than ``tol`` in a step or after ``max_iter`` steps.
 """
 
 from __future__ import annotations
@@ -14,35 +15,22 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from types import MappingProxyType
 
-import mujoco
+import mink
 import numpy as np
 
 from hlik.criteria import registry, unified
-from hlik.criteria.base import Sample, Term
+from hlik.criteria.base import Term
 from hlik.criteria.functional import target_terms
 from hlik.criteria.joints import TrunkUpright
 from hlik.criteria.learned import Learned
 from hlik.criteria.smoothness import smoothness_terms
 from hlik.errors import SettingsError
 from hlik.problem.problem import Problem
-from hlik.robot.collision import CollisionPairs, DistanceBounds, collision_pairs
 from hlik.robot.model import Robot
-from hlik.robot.state import robot_state
 from hlik.solvers.base import ConfiguredSolver, SolverResult, check_settings
-from hlik.solvers.frames import (
-    FrameResult,
-    JointBox,
-    collision_floors,
-    collision_rows,
-    constrained_steps,
-    hand_band,
-    iterate,
-    nearest_band,
-    step_budget,
-    track,
-)
-from hlik.solvers.limits import MotionLimits
-from hlik.solvers.qp_backend import qp_backends, solve_qp
+from hlik.solvers.mink_ik import MinkSolver
+from hlik.solvers.mink_tasks import CriterionTask, HandBandLimit, StateCache
+from hlik.solvers.qp_backend import qp_backends
 from hlik.solvers.settings import SolverSettings
 
 # HJA_r's Table II gamma (2) doubled for the QP: beside SYN (gamma 6) it barely acted, and SYN +
@@ -158,84 +146,40 @@ def build_terms(
     return terms
 
 
-class Assembly:
-    """A stack prepared for repeated QP steps.
-
-    Terms with a constant Jacobian contribute a constant ``J^T W^2 J`` to the Hessian, summed once
-    here; per step they only add ``J^T W^2 e`` to the gradient. The other terms are stacked.
-    """
-
-    def __init__(self, terms: Sequence[Term], n: int, damping: float):
-        self.terms = tuple(terms)
-        self.sites = tuple(sorted({i for term in terms for i in term.sites}))
-        self.hessian = damping * np.eye(n)
-        self.weights, self.gradient_maps = [], []
-        for term in self.terms:
-            w = np.asarray(term.cost_weight, dtype=float)
-            jac = term.constant_jacobian
-            self.weights.append(w[:, None] if w.ndim else w)
-            self.gradient_maps.append(None if jac is None else (np.square(self.weights[-1]) * jac).T)
-            if jac is not None:
-                self.hessian += self.gradient_maps[-1] @ jac
-
-
-def step(
+def build_solver(
     robot: Robot,
-    stack: Assembly,
-    q: np.ndarray,
-    frame: Sample,
-    settings: QPSettings,
-    data: mujoco.MjData | None = None,
-    box: JointBox | None = None,
-    pairs: CollisionPairs | None = None,
-    bounds: DistanceBounds | None = None,
-    floors: tuple[np.ndarray, np.ndarray] | None = None,
-) -> np.ndarray | None:
-    """One QP step from ``q`` (n,) within ``box`` (default: the joint limits), keeping the collision
-    ``pairs`` apart (none closer than its ``floors``, :func:`~hlik.solvers.frames.collision_floors`):
-    the joint change dq (n,), or None where the QP solver found none. Reuse ``data`` and the pairs'
-    distance ``bounds`` across steps."""
-    data = mujoco.MjData(robot.model) if data is None else data
-    state = robot_state(robot, q, jacobians=bool(stack.sites), data=data, jacobian_sites=stack.sites)
-    gradient = np.zeros(robot.dof)
-    rows, errors = [], []
-    band_rows, band_bounds = [], []
-    for term, w, gradient_map in zip(stack.terms, stack.weights, stack.gradient_maps):
-        e, jac = term(state, frame)
-        band = hand_band(term, settings) / np.sqrt(3.0)  # per component: the norm within the band
-        if band > 0.0:  # -b <= e + J dq <= b per component, in the term's weighted units
-            wj, we, wb = w * jac, w.ravel() * e, w.ravel() * band
-            band_rows += [wj, -wj]
-            band_bounds += [wb - we, wb + we]
-        if gradient_map is not None:
-            gradient += gradient_map @ e
-        else:
-            rows.append(w * jac)
-            errors.append(w.ravel() * e)
-    hessian = stack.hessian
-    if rows:
-        a = np.vstack(rows)
-        hessian = hessian + a.T @ a
-        gradient += a.T @ np.concatenate(errors)
-    box = box or JointBox(robot.lower, robot.upper)
-    a_col, b_col = np.zeros((0, robot.dof)), np.zeros(0)
-    if pairs is not None and len(pairs):
-        a_col, b_col = collision_rows(robot, data, pairs, bounds, settings, floors)  # q's kinematics in data
-    dq = None
-    a_band = np.vstack(band_rows) if band_rows else None
-    b_band = np.concatenate(band_bounds) if band_rows else None
-    tries = constrained_steps(box, q, settings.max_step, a_col, b_col, a_band, b_band)
-    for k, c in enumerate(tries):
-        dq = solve_qp(hessian, gradient, c.lower, c.upper, settings.solver, c.rows, c.bound, c.soft)
-        if dq is None and k == 0 and b_band is not None:  # the band out of reach: as near as the body allows
-            nearest = nearest_band(c, len(b_band), settings.solver)
-            if nearest is not None:
-                dq = solve_qp(hessian, gradient, c.lower, c.upper, settings.solver, c.rows, nearest)
-        if dq is not None:
-            break
-    if dq is None or not np.all(np.isfinite(dq)):
-        return None  # no step found: the frame stays where it is, failed (limits hold, nothing NaN)
-    return dq
+    settings: QPSettings = QPSettings(),
+    learned: Learned | None = None,
+    tasks: Sequence[mink.Task] = (),
+    limits: Sequence[mink.Limit] = (),
+    progress: Callable[[int], None] | None = None,
+) -> MinkSolver:
+    """The QP's stack on mink: every term of :func:`build_terms` (the TCP pose or relative pose
+    terms, smoothness, trunk, the criteria, with their weights) as a
+    :class:`~hlik.solvers.mink_tasks.CriterionTask`, the first frame's stack as its own, the hands'
+    band as a :class:`~hlik.solvers.mink_tasks.HandBandLimit`, and the stopping rule, step bound,
+    damping, limits and collision margins of ``settings``; ``tasks`` and ``limits`` (mink's own,
+    or a user's) are added to every frame's."""
+    cache = StateCache(robot)
+
+    def stack(*args) -> list[mink.Task]:
+        terms = build_terms(robot, settings, learned, *args)
+        return [*(CriterionTask(robot, t, cache=cache) for t in terms), *tasks]
+
+    band = settings.position_band > 0 or settings.orientation_band > 0
+    return MinkSolver(
+        stack(),
+        [*limits, *([HandBandLimit(settings.position_band, settings.orientation_band)] if band else [])],
+        max_iter=settings.max_iter,
+        tol=settings.tol,
+        max_step=settings.max_step,
+        damping=settings.damping,
+        solver=settings.solver,
+        motion_limits=settings,
+        self_collision=settings.self_collision,
+        first_tasks=stack("pose", True),
+        progress=progress,
+    )
 
 
 def solve(
@@ -243,28 +187,8 @@ def solve(
     settings: QPSettings = QPSettings(),
     progress: Callable[[int], None] | None = None,
 ) -> SolverResult:
-    """Retarget frame by frame; diagnostics count the QP steps per frame."""
-    robot, learned = problem.robot, problem.learned
-    terms = Assembly(build_terms(robot, settings, learned), robot.dof, settings.damping)
-    first = Assembly(build_terms(robot, settings, learned, "pose", first=True), robot.dof, settings.damping)
-    data = mujoco.MjData(robot.model)
-    pairs = collision_pairs(robot) if settings.self_collision else None
-    bounds = DistanceBounds(pairs) if pairs is not None else None
-
-    def solve_frame(k: int, frame: Sample, q: np.ndarray, box: JointBox) -> FrameResult:
-        stack = first if k == 0 else terms
-        max_iter = step_budget(k, settings.max_iter)
-        floors = collision_floors(robot, data, pairs, box, settings, bounds)
-        return iterate(
-            lambda x: step(robot, stack, x, frame, settings, data, box, pairs, bounds, floors),
-            q,
-            box,
-            max_iter,
-            settings.tol,
-            damp_reversals=True,
-        )
-
-    return track(problem, solve_frame, progress, MotionLimits.of(robot, settings))
+    """Retarget frame by frame (:func:`build_solver`); diagnostics count the QP steps per frame."""
+    return build_solver(problem.robot, settings, problem.learned, progress=progress)(problem)
 
 
 def qp_solver(

@@ -11,8 +11,10 @@ SLSQP crawled along it (ARMAR-6, Cut take: 65 evaluations a frame, 18 with the s
 forward-kinematics pass per evaluation gives every h_i and, with ``gradients="analytic"``, its
 exact gradient (:meth:`~hlik.criteria.base.Term.exact`); ``gradients="fd"`` uses forward
 differences of the objective instead, as the paper and RelaxedIK do.
-Frames are warm-started from the previous solution; a frame where NLopt fails keeps the best finite
-configuration it evaluated (or the previous solution) and is reported.
+Frames are warm-started from the previous solution; where NLopt stops without a result, the frame
+keeps the configuration it evaluated that missed the body's constraints least (the lowest
+objective among equals; else the frame's start): a frame NLopt calls roundoff-limited is then
+unconverged, any other failure is reported as failed.
 
 NLopt's SLSQP starts each frame's quasi-Newton model from the identity Hessian, and the objective's
 is 10^3-10^5 times larger and far from round. Each frame is therefore solved in the variables x of

@@ -144,8 +144,7 @@ def _least_squares(term: Term) -> bool:
 class Objective:
     """``sum_i w_i groove(gamma_i h_i(q))`` of one frame and its gradient; NLopt's callback.
 
-    Set the frame with :meth:`reset` before optimising. Keeps the configuration with the lowest
-    finite objective NLopt asked for (:attr:`best`) and counts NLopt's evaluations.
+    Set the frame with :meth:`reset` before optimising. Counts NLopt's evaluations.
     """
 
     def __init__(
@@ -179,12 +178,11 @@ class Objective:
         self.reset()
 
     def reset(self, frame: Sample | None = None, q0: np.ndarray | None = None) -> None:
-        """Start a frame: forget the best configuration and the evaluation count. With ``q0`` (n,),
+        """Start a frame: forget the evaluation count. With ``q0`` (n,),
         NLopt's view of the frame is set up at ``q0`` as :attr:`precondition` says: :attr:`chart`
         (``gauss_newton``) and :attr:`scale`."""
         self.frame = frame
-        self.best: np.ndarray | None = None
-        self.best_value, self.evaluations, self.scale = np.inf, 0, 1.0
+        self.evaluations, self.scale = 0, 1.0
         self.chart: Chart | None = None
         self._start: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
         if q0 is None or frame is None:
@@ -308,8 +306,6 @@ class Objective:
             g = self.fd_gradient(q, f) if grad.size else None
         if g is not None:
             grad[:] = (g if self.chart is None else g @ self.chart.T) / self.scale
-        if f < self.best_value:  # False for NaN
-            self.best, self.best_value = q.copy(), f
         return f / self.scale
 
 

@@ -78,8 +78,9 @@ def solve_frame(
     band cannot be met from here), again with them no worse than at the start.
 
     Returns:
-        (n,) the solution and NLopt's result code; on failure (negative code) the best finite
-        configuration evaluated, else ``q0``.
+        (n,) the solution and NLopt's result code; on failure (negative code) the configuration
+        evaluated that missed the body's constraints least, of those the lowest finite objective
+        (:class:`Evaluated`), else ``q0``.
     """
     if band is None or not len(band):
         return _solve_once(opt, objective, frame, q0, max_eval, box, collision, None)
@@ -104,12 +105,14 @@ def _solve_once(
     objective.reset(frame, q0)
     chart = objective.chart
     opt.remove_inequality_constraints()
+    seen = Evaluated()
     if collision is not None:
         collision.chart = chart
         tolerance = np.full(collision.settings.collision_pairs, COLLISION_TOLERANCE)
-        opt.add_inequality_mconstraint(collision, tolerance)
+        opt.add_inequality_mconstraint(seen.constraint(collision, COLLISION_TOLERANCE), tolerance)
     if band is not None:
         band.reset(frame, q0, chart, strict)
+        # not recorded: a fallback keeps the body's constraints, and the hands as near as it can
         opt.add_inequality_mconstraint(band, np.full(len(band), BAND_TOLERANCE))
     if chart is None:
         opt.set_lower_bounds(box.lower)
@@ -123,8 +126,10 @@ def _solve_once(
     if len(bounds):
         # a joint starting on its limit starts on the row: with no tolerance, rounding in A x
         # made SLSQP's line search fail (ROUNDOFF_LIMITED) on 7 % of ARMAR-6's Cut frames
-        opt.add_inequality_mconstraint(bounds, np.full(len(bounds), BOX_TOLERANCE))
-    opt.set_min_objective(objective)
+        opt.add_inequality_mconstraint(
+            seen.constraint(bounds, BOX_TOLERANCE), np.full(len(bounds), BOX_TOLERANCE)
+        )
+    opt.set_min_objective(seen.objective(objective))
     opt.set_maxeval(max_eval)
     try:
         x = opt.optimize(x0)
@@ -138,8 +143,49 @@ def _solve_once(
             raise
         q, status = None, code
     if q is None:
-        q = objective.best if objective.best is not None else q0
+        # the point that misses the body's constraints least, the lowest objective among equals, as
+        # the QP's soft rows: the lowest objective alone had put 2-Panda's arm 4 cm into its chest (a
+        # target there, on a machine whose rounding stopped SLSQP ROUNDOFF_LIMITED 16 frames running)
+        best = seen.best()
+        q = q0 if best is None else (best[0] if chart is None else chart.q(best[0]))
     return np.asarray(q, dtype=float), int(status)
+
+
+class Evaluated:
+    """The points NLopt evaluated in one run, with their objective and by how much they missed the
+    body's constraints (collision, the box's rows; beyond their tolerance), to fall back on where
+    NLopt stops without a result."""
+
+    def __init__(self) -> None:
+        self.values: dict[bytes, tuple[float, np.ndarray]] = {}
+        self.violation: dict[bytes, float] = {}
+
+    def objective(self, f: Callable[[np.ndarray, np.ndarray], float]) -> Callable:
+        def recorded(x: np.ndarray, grad: np.ndarray) -> float:
+            value = f(x, grad)
+            self.values[x.tobytes()] = (float(value), x.copy())
+            return value
+
+        return recorded
+
+    def constraint(
+        self, c: Callable[[np.ndarray, np.ndarray, np.ndarray], None], tolerance: float
+    ) -> Callable:
+        def recorded(result: np.ndarray, x: np.ndarray, grad: np.ndarray) -> None:
+            c(result, x, grad)
+            key, worst = x.tobytes(), float(np.max(result - tolerance, initial=0.0))
+            self.violation[key] = max(self.violation.get(key, 0.0), worst)
+
+        return recorded
+
+    def best(self) -> tuple[np.ndarray, float] | None:
+        """The evaluated point that misses the constraints least (the most any misses by, beyond
+        its tolerance), of those the lowest finite objective, and that miss; None if none."""
+        points = [(self.violation.get(k, 0.0), v, x) for k, (v, x) in self.values.items() if np.isfinite(v)]
+        if not points:
+            return None
+        miss, _, x = min(points, key=lambda item: item[:2])
+        return x, miss
 
 
 def solve(
@@ -172,7 +218,9 @@ def solve(
             collision.brake(box)
         q, status[k] = solve_frame(opt, obj, frame, box.clip(q), max_eval, box, collision, hands)
         converged = status[k] > 0 and status[k] != nlopt.MAXEVAL_REACHED
-        return FrameResult(box.clip(q), obj.evaluations, converged, status[k] < 0)
+        # roundoff-limited (NLopt: "still typically returns a useful result"): unconverged, not failed
+        failed = status[k] < 0 and status[k] != nlopt.ROUNDOFF_LIMITED
+        return FrameResult(box.clip(q), obj.evaluations, converged, failed)
 
     result = track(problem, solve_frame_k, progress, MotionLimits.of(robot, settings))
     return replace(result, info=MappingProxyType({"status": status}))
