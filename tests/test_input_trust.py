@@ -26,6 +26,7 @@ from hlik.robot.model import load_robot
 from hlik.robot.reachability import reachability_map
 from hlik.robot.state import robot_state
 from hlik.solvers.frames import sample_at
+from hlik.solvers.gradients import gradient
 
 # A take whose ARMAR-6 elbow (an unlimited joint) passes pi between 4 and 5 s.
 TAKE = "kit_bimanual/Close_files_motions_3072_Close1_aj_180_30h_08.xml"
@@ -50,7 +51,7 @@ def _motion_residuals(robot, learned, traj, q):
     solvers' smoothness term, for every frame of ``traj`` with joint angles ``q``."""
     moved = replace(traj, q=q)
     sample, state = trajectory_sample(moved, moved.reference), robot_state(robot, q)
-    smooth = smoothness_terms(robot, 0.3, 0.2, 0.1)[0]
+    ((smooth, _),) = smoothness_terms(robot, 0.3, 0.2, 0.1)
     mje = MJE(robot)
     return {
         "MIS": MIS(robot, learned.synergies).residual(state, sample),
@@ -113,7 +114,7 @@ def test_gradients_of_the_motion_terms_ignore_whole_turns(armar6_jm, name):
     """A solver's step from a wound configuration and history is the step from the plain one."""
     robot, learned, traj = armar6_jm
     term = (
-        smoothness_terms(robot, 0.3, 0.2, 0.1)[0]
+        smoothness_terms(robot, 0.3, 0.2, 0.1)[0][0]
         if name == "smoothness"
         else registry.criterion(name, robot, learned)
     )
@@ -126,11 +127,13 @@ def test_gradients_of_the_motion_terms_ignore_whole_turns(armar6_jm, name):
         q_wound, history_wound = traj.q[k].copy(), history.copy()
         q_wound[u] += turns[0]
         history_wound[:, u] += turns[1:]
-        h, grad = term.gradient(
+        h, grad = gradient(
+            term,
             robot_state(robot, traj.q[k], jacobians=True),
             sample_at(traj.reference, traj.targets, k, history, ref.dt),
         )
-        h_wound, grad_wound = term.gradient(
+        h_wound, grad_wound = gradient(
+            term,
             robot_state(robot, q_wound, jacobians=True),
             sample_at(traj.reference, traj.targets, k, history_wound, ref.dt),
         )

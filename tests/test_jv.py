@@ -22,6 +22,7 @@ from hlik.problem.placement import shoulder_placement
 from hlik.problem.targets import HandTargets, hand_targets
 from hlik.robot.state import robot_state
 from hlik.solvers.frames import JointBox
+from hlik.solvers.gradients import part_metric
 from hlik.solvers.jv import (
     JVSettings,
     chan_dubey,
@@ -141,7 +142,7 @@ def test_the_papers_rule_ends_a_frame_once_its_targets_are_reached(takes, reacha
     state = robot_state(r, q)
     pos = np.linalg.norm(state.tcp - targets.pos, axis=-1)  # (T, 2)
     sample = Sample(targets.pos, targets.rot, *(np.zeros((len(q), 1)),) * 4, 0.01)
-    ori = np.stack([fORI().part_metric(e)[0] for e in fORI().residual(state, sample)])
+    ori = np.stack([part_metric(fORI(), e)[0] for e in fORI().residual(state, sample)])
     short = steps < paper.max_iter
     assert np.all(pos[short] < paper.reached_position) and np.all(ori[short] < paper.reached_orientation)
 

@@ -19,6 +19,7 @@ from hlik.retarget import retarget
 from hlik.robot.state import robot_state
 from hlik.solvers import SOLVERS, SPECS, get_solver
 from hlik.solvers.frames import sample_at
+from hlik.solvers.gradients import gradient, metric, part_gradients, part_metric
 from hlik.solvers.jv import JVSettings
 from hlik.solvers.qp import QPSettings
 from hlik.solvers.slsqp import SLSQPSettings
@@ -53,7 +54,7 @@ def test_every_exact_jacobian_matches_central_differences(robot, name):
     np.testing.assert_allclose(jac, fd, atol=2e-5 * max(1.0, np.abs(fd).max()))
     if crit.solver_form is not None:
         return  # the solvers minimise a stand-in (MIS: a velocity penalty); they report crit.cost
-    h, dh_de = crit.metric(e)  # the solvers' h and dh/de equal the vectorised cost's
+    h, dh_de = metric(crit, e)  # the solvers' h and dh/de equal the vectorised cost's
     assert h == pytest.approx(float(crit.cost(e[None])[0]))
     np.testing.assert_allclose(dh_de, central_differences(lambda x: crit.cost(x[None]), e)[0], atol=1e-5)
 
@@ -88,11 +89,11 @@ def test_every_criterion_gradient_matches_central_differences_of_its_cost(robot,
     assert crit.numeric_gradient_cap is None  # no criterion of the paper's needs numeric gradients
 
     def cost(x, sample):
-        return np.array([crit.metric(crit(robot_state(robot, x, jacobians=True), sample)[0])[0]])
+        return np.array([metric(crit, crit(robot_state(robot, x, jacobians=True), sample)[0])[0]])
 
     for seed in (3, 4):
         sample, q = random_frame(robot, seed)
-        h, grad = crit.gradient(robot_state(robot, q, jacobians=True), sample)
+        h, grad = gradient(crit, robot_state(robot, q, jacobians=True), sample)
         fd = central_differences(lambda x, s=sample: cost(x, s), q)[0]
         assert h == pytest.approx(cost(q, sample)[0])
         np.testing.assert_allclose(grad, fd, atol=2e-5 * max(1.0, np.abs(fd).max()))
@@ -106,18 +107,18 @@ def test_every_criterion_splits_into_parts_whose_mean_is_its_cost(robot, name):
     sample, q = random_frame(robot, 5)
     state = robot_state(robot, q, jacobians=True)
     e = crit(state, sample)[0]
-    parts, d_parts = crit.part_metric(e)
+    parts, d_parts = part_metric(crit, e)
     assert parts.shape == (crit.parts,) and d_parts.shape == (crit.parts, len(e))
-    assert parts.mean() == pytest.approx(crit.metric(e)[0], rel=1e-12, abs=1e-15)
+    assert parts.mean() == pytest.approx(metric(crit, e)[0], rel=1e-12, abs=1e-15)
     for p, rows in enumerate(crit.part_rows(len(e))):
         kept = np.zeros_like(e)
         kept[rows] = e[rows]
-        assert crit.part_metric(kept)[0][p] == pytest.approx(parts[p], rel=1e-12, abs=1e-15)
+        assert part_metric(crit, kept)[0][p] == pytest.approx(parts[p], rel=1e-12, abs=1e-15)
     if crit.solver_form is not None:
         return  # its gradient is the stand-in's, checked above through metric
-    h, grad = crit.part_gradients(state, sample)
+    h, grad = part_gradients(crit, state, sample)
     fd = central_differences(
-        lambda x: crit.part_metric(crit(robot_state(robot, x, jacobians=True), sample)[0])[0], q
+        lambda x: part_metric(crit, crit(robot_state(robot, x, jacobians=True), sample)[0])[0], q
     )
     np.testing.assert_allclose(h, parts, rtol=1e-12, atol=1e-15)
     np.testing.assert_allclose(grad, fd, atol=2e-5 * max(1.0, np.abs(fd).max()))

@@ -24,6 +24,7 @@ from hlik.robot.collision import collision_pairs
 from hlik.robot.state import robot_state
 from hlik.solvers import frames, get_solver
 from hlik.solvers.frames import JointBox, joint_box, sample_at
+from hlik.solvers.gradients import metric, part_metric
 from hlik.solvers.slsqp import (
     BandConstraint,
     BoxConstraint,
@@ -241,7 +242,7 @@ def test_each_losss_curvature_is_its_hessian_in_the_residual(name):
 
         def gradient(x, split=split, loss=loss):
             h, dh_de = (
-                term.part_metric(x) if split else (np.array([term.metric(x)[0]]), term.metric(x)[1][None])
+                part_metric(term, x) if split else (np.array([metric(term, x)[0]]), metric(term, x)[1][None])
             )
             slope = groove(loss.gamma * h)[1] * loss.gamma * loss.weight / len(h)
             return slope @ dh_de

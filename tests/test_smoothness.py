@@ -55,7 +55,7 @@ def test_motion_criteria_stay_out_of_the_first_frame():
     """The first frame has no motion before it: MIS and MJE are 0 there whatever q."""
     robot = load_robot("dual_panda")
     settings = QPSettings(criteria=("MJE", "MIS", "HJA_r"))
-    names = lambda terms: [t.name for t in terms]  # noqa: E731
+    names = lambda terms: [t.name for t, _ in terms]  # noqa: E731
     assert {"MJE", "MIS", "HJA_r"} <= set(names(build_terms(robot, settings, learn(robot))))
     first = names(build_terms(robot, settings, learn(robot), "pose", first=True))
     assert "HJA_r" in first and "MJE" not in first and "MIS" not in first

@@ -74,13 +74,11 @@ class Term:
     Subclasses implement :meth:`residual` and :meth:`jacobian` (or set ``constant_jacobian``) and,
     where h is not the mean of squares, :meth:`cost` and :meth:`cost_gradient` (and ``parts`` and
     ``part_form`` where h is a mean over the arms). Solvers read one sample through :meth:`__call__`
-    (e, J), :meth:`exact` (e, exact J), :meth:`metric` (h, dh/de), :meth:`gradient` (h, dh/dq) and,
-    per arm, :meth:`part_metric` and :meth:`part_gradients` (their ``_of`` forms from :meth:`exact`'s
-    result, to share it); ``cost_weight`` is the weight a solver gives the term (scalar or per row).
+    (e, J) and :meth:`exact` (e, exact J); h and dh/dq of one sample, whole and per arm, follow in
+    :mod:`hlik.solvers.gradients`. The weight a solver gives a term is the solver's, beside it.
     """
 
     name: str = "term"
-    cost_weight: float | np.ndarray = 1.0
     needs_sample: bool = True  # False: the residual depends on the configuration alone
     sites: tuple[int, ...] = (0, 1, 2, 3)  # site Jacobians the Jacobian reads (indices into SITES)
     value_sites: tuple[int, ...] = ()  # site Jacobians the residual itself reads
@@ -92,6 +90,7 @@ class Term:
     # norm), "squares" (mean of squares) or None (other, or Term's own mean of squares)
     part_form: str | None = None
     norm_scale: float = 1.0  # with part_form "norm": each part's cost is norm_scale |e_p|
+    gradient_cap: float | None = None  # each dh/dq scaled down to this norm (:mod:`hlik.solvers.gradients`)
 
     def part_rows(self, m: int) -> Sequence[np.ndarray]:
         """The rows of each part of a residual with ``m`` rows: :attr:`parts` equal slices."""
@@ -127,58 +126,10 @@ class Term:
         unless the solvers minimise a stand-in (``Criterion.solver_form``)."""
         return self.cost(e), self.cost_gradient(e)
 
-    def metric(self, e: np.ndarray) -> tuple[float, np.ndarray]:
-        """:meth:`metrics` of one residual ``e`` (m,): h and dh/de (m,)."""
-        h, dh_de = self.metrics(e[None])
-        return float(h[0]), dh_de[0]
-
     def exact(self, state: RobotState, sample: Sample) -> tuple[np.ndarray, np.ndarray]:
         """Residual (m,) and its exact derivative d e / dq (m, n) of one sample; :meth:`__call__`'s
         Jacobian unless that one holds a prediction fixed (``Criterion.exact_jacobian``)."""
         return self(state, sample)
-
-    def gradient(self, state: RobotState, sample: Sample) -> tuple[float, np.ndarray]:
-        """The cost h of one sample and its gradient dh/dq (n,)."""
-        return self.gradient_of(*self.exact(state, sample))
-
-    def gradient_of(self, e: np.ndarray, jac: np.ndarray) -> tuple[float, np.ndarray]:
-        """:meth:`gradient` from :meth:`exact`'s residual ``e`` (m,) and Jacobian ``jac`` (m, n)."""
-        h, dh_de = self.metric(e)
-        return h, dh_de @ jac
-
-    def part_metric(self, e: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Each part's cost ``parts * h(e_p)`` of a residual ``e`` (m,) or (F, m): (P,) or (F, P), and
-        d/de: (P, m) or (F, P, m).
-
-        Their mean is h(e). A solver that puts each through its own loss keeps a smooth objective
-        where the loss of the mean has a kink: l(|a| + |b|) at a = 0 when b != 0."""
-        if self.parts == 1:
-            h, dh_de = self.metrics(e.reshape(-1, e.shape[-1]))
-            return h.reshape(*e.shape[:-1], 1), dh_de.reshape(*e.shape[:-1], 1, e.shape[-1])
-        rows = self.part_rows(e.shape[-1])
-        if self.part_form == "norm":  # each part's cost is the norm of its rows: no split needed
-            norms = np.stack([np.sqrt(np.einsum("...i,...i->...", e[..., r], e[..., r])) for r in rows], -1)
-            grad = np.zeros((*e.shape[:-1], len(rows), e.shape[-1]))
-            for p, r in enumerate(rows):
-                grad[..., p, r] = e[..., r] / np.maximum(norms[..., p, None], 1e-12)
-            return self.norm_scale * norms, self.norm_scale * grad
-        split = np.zeros((*e.shape[:-1], len(rows), e.shape[-1]))
-        for p, r in enumerate(rows):
-            split[..., p, r] = e[..., r]
-        h, dh_de = self.metrics(split.reshape(-1, e.shape[-1]))
-        return self.parts * h.reshape(split.shape[:-1]), self.parts * dh_de.reshape(split.shape)
-
-    def part_gradients(self, state: RobotState, sample: Sample) -> tuple[np.ndarray, np.ndarray]:
-        """Each part's cost (P,) of one sample (:meth:`part_metric`) and its gradient d/dq (P, n)."""
-        return self.part_gradients_of(*self.exact(state, sample))
-
-    def part_gradients_of(self, e: np.ndarray, jac: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """:meth:`part_gradients` from :meth:`exact`'s residual ``e`` (m,) and Jacobian ``jac`` (m, n)."""
-        if self.parts == 1:
-            cost, grad = self.gradient_of(e, jac)
-            return np.array([cost]), grad[None]
-        costs, dh_de = self.part_metric(e)
-        return costs, dh_de @ jac
 
 
 class Criterion(Term):

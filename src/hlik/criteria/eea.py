@@ -400,14 +400,16 @@ class EEA(Criterion):
     shoulder -> wrist axis the residual and its row of the Jacobian fade to 0, as there is no
     elevation to compare. The prediction and the weight are held fixed in :meth:`jacobian` (the
     QP's Gauss-Newton step, formulas.md §9); each factor of the weight is above 0.99 beyond 19° from
-    its singularity. :meth:`gradient` (SLSQP, JV) is exact: it adds the prediction's and the
-    weight's derivatives (:func:`prediction_and_jacobian`, :func:`swivel_parts_and_jacobians`), its
-    norm capped at :data:`GRADIENT_CAP` as the paper caps the elevation gradients (Sec. IV-A).
+    its singularity. :meth:`exact` (SLSQP, JV) is exact: it adds the prediction's and the weight's
+    derivatives (:func:`prediction_and_jacobian`, :func:`swivel_parts_and_jacobians`); the
+    gradients of h it gives (:mod:`hlik.solvers.gradients`) are capped at :data:`GRADIENT_CAP` in
+    norm as the paper caps the elevation gradients (Sec. IV-A).
     """
 
     name, gamma, x0, weight = "EEA", 4.0, 0.3, 1 / 20
     exact_jacobian = False  # jacobian() holds the prediction and the weight fixed; exact() does not
     needs_sample, parts, part_form = False, 2, "norm"
+    gradient_cap = GRADIENT_CAP
 
     learned = "swivel"
 
@@ -447,14 +449,6 @@ class EEA(Criterion):
         d_psi = _capped(d_swivel, SWIVEL_CAP) - d_target
         jac = d_weight * r[..., None] + weight[..., None] * d_psi / np.pi  # (1, 2, n)
         return (weight * r)[0], jac[0]
-
-    def gradient_of(self, e, jac):
-        h, g = super().gradient_of(e, jac)
-        return h, _capped(g[None], GRADIENT_CAP)[0]
-
-    def part_gradients_of(self, e, jac):
-        h, g = super().part_gradients_of(e, jac)
-        return h, _capped(g, GRADIENT_CAP)
 
 
 class EEA_r(EEA):  # noqa: N801 - the paper's name

@@ -120,8 +120,11 @@ class Smoothness(Term):
         return e / np.maximum(np.linalg.norm(e, axis=-1, keepdims=True), 1e-12)
 
 
-def smoothness_terms(robot: Robot, velocity: float, acceleration: float, jerk: float) -> list[Term]:
-    """RelaxedIK's minimum velocity, acceleration and jerk with the given costs, as one term.
+def smoothness_terms(
+    robot: Robot, velocity: float, acceleration: float, jerk: float
+) -> list[tuple[Term, float]]:
+    """RelaxedIK's minimum velocity, acceleration and jerk with the given costs, as one term with
+    its weight (none where every cost is 0).
 
     The three are least squares toward three extrapolations of the same history with the identity
     Jacobian, so their sum equals one term toward the cost-weighted mean extrapolation (up to a
@@ -131,6 +134,6 @@ def smoothness_terms(robot: Robot, velocity: float, acceleration: float, jerk: f
     if not np.any(costs > 0):
         return []
     w = costs**2 / np.sum(costs**2)
-    term = Smoothness(w @ np.stack([VELOCITY, ACCELERATION, JERK]), robot)
-    term.cost_weight = float(np.sqrt(np.sum(costs**2)))
-    return [term]
+    return [
+        (Smoothness(w @ np.stack([VELOCITY, ACCELERATION, JERK]), robot), float(np.sqrt(np.sum(costs**2))))
+    ]

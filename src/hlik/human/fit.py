@@ -91,14 +91,35 @@ def fit_mmm(keypoints: Keypoints, height: float | None = None) -> HumanMotion:
     Raises:
         MotionFormatError: shoulders that coincide in the horizontal plane (no heading).
     """
-    import mink  # the solvers' IK; not needed to measure a fit (fit_error)
-
     height = estimate_height(keypoints) if height is None else height
     _, mid0, shoulders0 = _mmm_ratios()
     mid0, shoulders0 = mid0 * height, shoulders0 * height
+    root_rot, root_pos = _root_frames(keypoints, mid0)
+    names, joints = _fit_arms(keypoints, height, root_rot, root_pos, shoulders0)
+    motion = HumanMotion(
+        name=keypoints.name,
+        times=keypoints.times,
+        joint_names=names,
+        joints=joints,
+        root_position=root_pos,
+        root_rotation=root_rot,
+        height=height,
+        markers=_markers(keypoints),
+        source=keypoints.source,
+        notes=keypoints.notes,
+    )
+    return replace(motion, notes=(*motion.notes, *_fit_notes(motion, keypoints, height, shoulders0)))
+
+
+def _root_frames(keypoints: Keypoints, mid0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The root's rotation (T, 3, 3) and position (T, 3), upright through the shoulders, for a model
+    whose shoulders' midpoint sits at ``mid0`` (3,) in the root frame.
+
+    Raises:
+        MotionFormatError: shoulders that coincide in the horizontal plane (no heading).
+    """
     n = keypoints.n_frames
-    root_rot = np.empty((n, 3, 3))
-    root_pos = np.empty((n, 3))
+    root_rot, root_pos = np.empty((n, 3, 3)), np.empty((n, 3))
     for k in range(n):
         try:
             rot, mid = _upright_through(keypoints.shoulder[k, 0], keypoints.shoulder[k, 1])
@@ -108,6 +129,21 @@ def fit_mmm(keypoints: Keypoints, height: float | None = None) -> HumanMotion:
                 f"frame {k} ({keypoints.times[k]:.2f} s): the shoulders coincide, no heading",
             ) from None
         root_rot[k], root_pos[k] = rot, mid - rot @ mid0
+    return root_rot, root_pos
+
+
+def _fit_arms(
+    keypoints: Keypoints,
+    height: float,
+    root_rot: np.ndarray,
+    root_pos: np.ndarray,
+    shoulders0: np.ndarray,
+) -> tuple[tuple[str, ...], np.ndarray]:
+    """The arm model's joint names and angles (T, nq) whose elbows and wrists (and hands'
+    orientations, where the keypoints have them) meet the keypoints', frame by frame with mink,
+    each arm moved so that its shoulder is the model's (``shoulders0`` (2, 3), root frame)."""
+    import mink  # the solvers' IK; not needed to measure a fit (fit_error)
+
     hands = keypoints.hand_frames()
     model = _arm_model(height)
     config = mink.Configuration(model)
@@ -129,9 +165,9 @@ def fit_mmm(keypoints: Keypoints, height: float | None = None) -> HumanMotion:
     # the arms start bent a little: a straight elbow is a singular start for the swivel
     for side in SIDES:
         q[names.index(ARM_JOINTS[side][3])] = 0.5
-    joints = np.empty((n, model.nq))
+    joints = np.empty((keypoints.n_frames, model.nq))
     eye = np.eye(3)
-    for k in range(n):
+    for k in range(keypoints.n_frames):
         rot, origin = root_rot[k], root_pos[k]
         for i, side in enumerate(SIDES):
             # the arm in the root frame, its shoulder moved onto the model's
@@ -153,24 +189,23 @@ def fit_mmm(keypoints: Keypoints, height: float | None = None) -> HumanMotion:
                 break
         q = config.q.copy()
         joints[k] = q
+    return names, joints
+
+
+def _markers(keypoints: Keypoints) -> dict[str, np.ndarray]:
+    """The keypoints as markers, ``{side}_{shoulder,elbow,wrist,index,pinky}`` (T, 3) each."""
     markers = {f"{side}_shoulder": keypoints.shoulder[:, i] for i, side in enumerate(SIDES)}
     markers |= {f"{side}_elbow": keypoints.elbow[:, i] for i, side in enumerate(SIDES)}
     markers |= {f"{side}_wrist": keypoints.wrist[:, i] for i, side in enumerate(SIDES)}
     for point, values in (("index", keypoints.index), ("pinky", keypoints.pinky)):
         if values is not None:
             markers |= {f"{side}_{point}": values[:, i] for i, side in enumerate(SIDES)}
-    motion = HumanMotion(
-        name=keypoints.name,
-        times=keypoints.times,
-        joint_names=names,
-        joints=joints,
-        root_position=root_pos,
-        root_rotation=root_rot,
-        height=height,
-        markers=markers,
-        source=keypoints.source,
-        notes=keypoints.notes,
-    )
+    return markers
+
+
+def _fit_notes(motion: HumanMotion, keypoints: Keypoints, height: float, shoulders0: np.ndarray) -> list[str]:
+    """What the fit says of itself: the elbows' and wrists' error, the shoulders' width against the
+    model's, and a subject that walks."""
     error = fit_error(motion)
     assert error is not None
     where = f"{keypoints.source}: " if keypoints.source else ""
@@ -192,7 +227,7 @@ def fit_mmm(keypoints: Keypoints, height: float | None = None) -> HumanMotion:
             f"{where}the subject walks ({travel:.1f} m from where it starts); a robot standing in one "
             "place cannot follow, so expect hands far off their targets (crop the take to where it stands)"
         )
-    return replace(motion, notes=(*motion.notes, *notes))
+    return notes
 
 
 def _upright_through(left: np.ndarray, right: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -51,6 +51,7 @@ from hlik.solvers.frames import (
     step_budget,
     track,
 )
+from hlik.solvers.gradients import gradient, part_metric
 from hlik.solvers.limits import MotionLimits
 from hlik.solvers.qp_backend import solve_qp
 from hlik.solvers.settings import SolverSettings
@@ -274,16 +275,15 @@ def _avoiding_step(
     return np.zeros(n), np.zeros(n)
 
 
-def criterion_terms(robot: Robot, settings: JVSettings, learned: Learned | None) -> list[Term]:
-    """The criteria of ``settings``, each with its null-space weight w_i as ``cost``."""
-    terms: list[Term] = []
-    for name in settings.criteria:
-        term = registry.criterion(name, robot, learned)
-        term.cost_weight = (
-            settings.criterion_cost * unified.gamma(name, settings.gamma) / len(settings.criteria)
+def criterion_terms(robot: Robot, settings: JVSettings, learned: Learned | None) -> list[tuple[Term, float]]:
+    """The criteria of ``settings``, each with its null-space weight w_i."""
+    return [
+        (
+            registry.criterion(name, robot, learned),
+            settings.criterion_cost * unified.gamma(name, settings.gamma) / len(settings.criteria),
         )
-        terms.append(term)
-    return terms
+        for name in settings.criteria
+    ]
 
 
 ROTATIONAL = (fORI, fORI_off)  # the target terms in rad; the others are in m
@@ -316,25 +316,30 @@ def targets_reached(evaluated: Sequence[tuple[Term, np.ndarray, np.ndarray]], se
         return False
     for term, e, _ in evaluated:
         limit = settings.reached_orientation if isinstance(term, ROTATIONAL) else settings.reached_position
-        if np.max(term.part_metric(e)[0]) > limit:  # each hand's distance or angle
+        if np.max(part_metric(term, e)[0]) > limit:  # each hand's distance or angle
             return False
     return True
 
 
 def secondary(
-    criteria: Sequence[Term], state: RobotState, frame: Sample, jla: np.ndarray, settings: JVSettings
+    criteria: Sequence[tuple[Term, float]],
+    state: RobotState,
+    frame: Sample,
+    jla: np.ndarray,
+    settings: JVSettings,
 ) -> np.ndarray:
-    """Gradient (n,) of the null-space cost sum_i w_i h_i + w_H H; ``jla`` is dH/dq (n,)."""
+    """Gradient (n,) of the null-space cost sum_i w_i h_i + w_H H; ``criteria`` the (term, w_i)
+    pairs, ``jla`` dH/dq (n,)."""
     grad = settings.criterion_cost * settings.jla_gamma * jla
-    for term in criteria:
-        grad = grad + term.cost_weight * term.gradient(state, frame)[1]
+    for term, weight in criteria:
+        grad = grad + weight * gradient(term, state, frame)[1]
     return grad
 
 
 def step(
     robot: Robot,
     targets: Sequence[Term],
-    criteria: Sequence[Term],
+    criteria: Sequence[tuple[Term, float]],
     q: np.ndarray,
     frame: Sample,
     settings: JVSettings,
@@ -356,7 +361,7 @@ def step(
     criteria) make bounded gradient steps of a fixed size zig-zag across their minimum, so a frame
     would never converge.
     """
-    sites = tuple(sorted({i for t in (*targets, *criteria) for i in t.sites}))
+    sites = tuple(sorted({i for t in (*targets, *(c for c, _ in criteria)) for i in t.sites}))
     data = mujoco.MjData(robot.model) if data is None else data
     state = robot_state(robot, q, jacobians=True, data=data, jacobian_sites=sites)
     evaluated = evaluate_targets(targets, state, frame)

@@ -50,21 +50,21 @@ class StateCache:
 
 class CriterionTask(mink.Task):
     """A least-squares hlik term as a ``mink.Task``; the robot's ``qpos`` is its configuration.
-    Tasks given one :class:`StateCache` share its kinematics pass."""
+    ``cost``: the weight of its residual's rows (a scalar, or one per row), as mink's tasks weigh
+    theirs. Tasks given one :class:`StateCache` share its kinematics pass."""
 
     def __init__(
         self,
         robot: Robot,
         term: Term,
-        cost: float = 1.0,
+        cost: float | np.ndarray = 1.0,
         gain: float = 1.0,
         lm_damping: float = 0.0,
         cache: StateCache | None = None,
     ):
         self.robot, self.term = robot, term
         self.sample: Sample | None = None
-        self._scale = float(cost)
-        self._weight: object = None  # the term weight self.cost was made from
+        self._cost = np.asarray(cost, dtype=float)
         self.cache = cache or StateCache(robot)
         super().__init__(cost=np.ones(0), gain=gain, lm_damping=lm_damping)
 
@@ -92,9 +92,8 @@ class CriterionTask(mink.Task):
             raise mink.exceptions.TargetNotSet(type(self).__name__)
         e, jac = self.term(self.cache.state(configuration.q), self.sample)  # type: ignore[arg-type]  # None only if not needed
         # mink reads the cost vector's length as the task dimension
-        if self.term.cost_weight is not self._weight or self.cost.shape != e.shape:
-            self._weight = self.term.cost_weight
-            self.cost = self._scale * np.broadcast_to(self.term.cost_weight, e.shape).astype(float)
+        if self.cost.shape != e.shape:
+            self.cost = np.broadcast_to(self._cost, e.shape).astype(float)
         return e, jac
 
 

@@ -116,8 +116,9 @@ def build_terms(
     learned: Learned | None,
     scenario: str | None = None,
     first: bool = False,
-) -> list[Term]:
-    """The stack of ``settings`` for ``robot``: targets, smoothness, criteria with their weights.
+) -> list[tuple[Term, float]]:
+    """The stack of ``settings`` for ``robot``: targets, smoothness, criteria, each with its weight
+    (the cost of its least-squares residual: ``||weight * e||^2`` in the objective).
 
     ``scenario`` overrides ``settings.scenario`` (the first frame of ``relative`` uses ``pose``);
     ``first``: the first frame's stack, without the criteria of motion (``Criterion.motion``).
@@ -125,24 +126,23 @@ def build_terms(
     scenario = scenario or settings.scenario
     position, orientation = target_terms(scenario)
     if scenario == "relative":
-        position.cost_weight = settings.relative_position_cost
-        orientation.cost_weight = settings.relative_orientation_cost
+        hands = [
+            (position, settings.relative_position_cost),
+            (orientation, settings.relative_orientation_cost),
+        ]
     else:
-        position.cost_weight, orientation.cost_weight = settings.position_cost, settings.orientation_cost
-    terms: list[Term] = [t for t in (position, orientation) if np.all(np.asarray(t.cost_weight) > 0)]
+        hands = [(position, settings.position_cost), (orientation, settings.orientation_cost)]
+    terms: list[tuple[Term, float]] = [(t, w) for t, w in hands if w > 0]
     terms += smoothness_terms(robot, settings.velocity_cost, settings.acceleration_cost, settings.jerk_cost)
     if settings.trunk_cost > 0 and robot.extra_joints:
-        trunk = TrunkUpright(robot)
-        trunk.cost_weight = settings.trunk_cost
-        terms.append(trunk)
+        terms.append((TrunkUpright(robot), settings.trunk_cost))
     for name in settings.criteria:
         term = registry.criterion(name, robot, learned)
         if first and term.motion:
             continue
         # the objective weighs ||e_i||^2 by gamma_i * criterion_cost / k, as the paper weighs h_i
         weight = unified.gamma(name, settings.gamma) * settings.criterion_cost / len(settings.criteria)
-        term.cost_weight = float(np.sqrt(weight))
-        terms.append(term)
+        terms.append((term, float(np.sqrt(weight))))
     return terms
 
 
@@ -164,7 +164,7 @@ def build_solver(
 
     def stack(*args) -> list[mink.Task]:
         terms = build_terms(robot, settings, learned, *args)
-        return [*(CriterionTask(robot, t, cache=cache) for t in terms), *tasks]
+        return [*(CriterionTask(robot, t, cost, cache=cache) for t, cost in terms), *tasks]
 
     band = settings.position_band > 0 or settings.orientation_band > 0
     return MinkSolver(

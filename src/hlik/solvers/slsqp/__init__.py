@@ -5,7 +5,7 @@ limits, where each h_i is the scalar cost of a term (:mod:`hlik.criteria`): the 
 pose errors, RelaxedIK's minimum velocity, acceleration and jerk toward the previous solutions, and
 the chosen human-likeness criteria; l is the groove loss. A cost that is the mean over both arms
 (fPOS, fORI, EEA, SOA_x, MAN^r, MJE) enters as one loss per arm, each with half the weight
-(:meth:`~hlik.criteria.base.Term.part_metric`): the loss of the mean, l(|a| + |b|), has a kink
+(:func:`~hlik.solvers.gradients.part_metric`): the loss of the mean, l(|a| + |b|), has a kink
 wherever one arm is on its target and the other is not, which at the optimum is everywhere, and
 SLSQP crawled along it (ARMAR-6, Cut take: 65 evaluations a frame, 18 with the split). One
 forward-kinematics pass per evaluation gives every h_i and, with ``gradients="analytic"``, its

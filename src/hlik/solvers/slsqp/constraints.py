@@ -13,6 +13,7 @@ from hlik.robot.collision import CollisionPairs, DistanceBounds, near_pairs
 from hlik.robot.model import Robot
 from hlik.robot.state import robot_state
 from hlik.solvers.frames import JointBox, collision_floors, hand_band
+from hlik.solvers.gradients import part_gradients
 from hlik.solvers.slsqp.objective import Chart, Loss, loss_sites
 from hlik.solvers.slsqp.settings import SLSQPSettings
 
@@ -94,7 +95,7 @@ class BandConstraint:
         if self.frame is None:
             raise RuntimeError("BandConstraint.reset(frame, ...) must be called before evaluating")
         state = robot_state(self.robot, q, True, self.data, self.sites)
-        parts = [t.part_gradients(state, self.frame) for t in self.terms]
+        parts = [part_gradients(t, state, self.frame) for t in self.terms]
         return np.concatenate([h for h, _ in parts]), np.vstack([g for _, g in parts])
 
     @property

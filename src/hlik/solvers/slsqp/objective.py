@@ -17,6 +17,7 @@ from hlik.criteria.learned import Learned
 from hlik.criteria.smoothness import ACCELERATION, JERK, VELOCITY, Smoothness
 from hlik.robot.model import Robot
 from hlik.robot.state import robot_state
+from hlik.solvers.gradients import gradient_of, metric, part_gradients_of, part_metric
 from hlik.solvers.slsqp.groove import groove, groove_curvature, groove_secant
 from hlik.solvers.slsqp.settings import SLSQPSettings
 
@@ -124,7 +125,7 @@ def loss_curvature(loss: Loss, e: np.ndarray, split: bool, eps: float = 1e-6) ->
     step = eps * max(1.0, float(np.max(np.abs(e), initial=0.0)))
     batch = e + step * np.concatenate([np.eye(m), -np.eye(m)])
     if split:
-        h, dh_de = term.part_metric(batch)  # (2m, P), (2m, P, m)
+        h, dh_de = part_metric(term, batch)  # (2m, P), (2m, P, m)
     else:
         whole, d_whole = term.metrics(batch)
         h, dh_de = whole[:, None], d_whole[:, None]
@@ -165,7 +166,7 @@ class Objective:
         # one FK pass computes only the site Jacobians the terms read (for fd: their values read)
         self.sites = loss_sites(loss.term.sites for loss in self.losses)
         self.value_sites = loss_sites(loss.term.value_sites for loss in self.losses)
-        # a loss over both arms is one loss per arm, weighted half (Term.part_metric says why): h
+        # a loss over both arms is one loss per arm, weighted half (gradients.part_metric says why): h
         # and the weights below are per piece, loss i's at slots[i]:slots[i + 1]
         self.split = tuple(loss.term.parts > 1 and i not in numeric for i, loss in enumerate(self.losses))
         counts = [loss.term.parts if split else 1 for loss, split in zip(self.losses, self.split)]
@@ -223,9 +224,9 @@ class Objective:
         its term's exact residual ``e`` and Jacobian ``jac``."""
         term, piece = self.losses[i].term, slice(self.slots[i], self.slots[i + 1])
         if self.split[i]:
-            h[piece], dh_dq[piece] = term.part_gradients_of(e, jac)
+            h[piece], dh_dq[piece] = part_gradients_of(term, e, jac)
         else:
-            h[piece.start], dh_dq[piece.start] = term.gradient_of(e, jac)
+            h[piece.start], dh_dq[piece.start] = gradient_of(term, e, jac)
 
     @property
     def sample(self) -> Sample:
@@ -242,7 +243,7 @@ class Objective:
         for i in which:
             term = self.losses[i].term
             e = term(state, self.sample)[0]
-            h.append(term.part_metric(e)[0] if self.split[i] else [term.metric(e)[0]])
+            h.append(part_metric(term, e)[0] if self.split[i] else [metric(term, e)[0]])
         return np.concatenate(h)
 
     def value(self, q: np.ndarray) -> float:
