@@ -77,15 +77,7 @@ def write_recording(
         raise ValueError(f"layout must be one of {LAYOUTS}, got {layout!r}")
     if chunk_frames < 1:
         raise ValueError(f"chunk_frames must be positive, got {chunk_frames}")
-    window = score_window(trajectory)
-    curves = dict(metrics) if metrics is not None else (evaluation.curves(window) if evaluation else {})
-    for name, values in curves.items():
-        if np.shape(values) != (trajectory.n_frames,):
-            raise ValueError(f"metric {name!r}: {np.shape(values)} values for {trajectory.n_frames} frames")
-    if evaluation is not None and len(evaluation.collisions) != trajectory.n_frames:
-        raise ValueError(
-            f"evaluation of {len(evaluation.collisions)} frames for a trajectory of {trajectory.n_frames}"
-        )
+    curves = _score_curves(trajectory, metrics, evaluation)
     info = dict(info or {})
     scenario = evaluation.scenario if evaluation is not None else info.get("scenario", "pose")
     path = Path(path)
@@ -115,6 +107,27 @@ def write_recording(
         finally:
             rec.disconnect()  # writes the footer; the file is complete only now
     return path
+
+
+def _score_curves(
+    trajectory: Trajectory, metrics: Mapping[str, np.ndarray] | None, evaluation: Evaluation | None
+) -> dict[str, np.ndarray]:
+    """The per-frame score curves to plot: ``metrics``, else the evaluation's (the criteria of
+    motion over :func:`score_window`), each checked to have one value a frame.
+
+    Raises:
+        ValueError: a curve or the evaluation of another length than the trajectory.
+    """
+    window = score_window(trajectory)
+    curves = dict(metrics) if metrics is not None else (evaluation.curves(window) if evaluation else {})
+    for name, values in curves.items():
+        if np.shape(values) != (trajectory.n_frames,):
+            raise ValueError(f"metric {name!r}: {np.shape(values)} values for {trajectory.n_frames} frames")
+    if evaluation is not None and len(evaluation.collisions) != trajectory.n_frames:
+        raise ValueError(
+            f"evaluation of {len(evaluation.collisions)} frames for a trajectory of {trajectory.n_frames}"
+        )
+    return curves
 
 
 # Bytes a recording takes per frame at most, with room to spare (KIT takes on the three robots:

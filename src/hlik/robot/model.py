@@ -226,13 +226,8 @@ def _build(path: Path, desc: dict, need_mapping: bool = True) -> Robot:
     if not NAME.fullmatch(name):
         raise RobotError(f"{path}: name {name!r} must be letters, digits, '_' or '-' (it names files)")
     source = _text(path, desc, "model", desc.get("mjcf"))  # ``mjcf`` is the key's former name
-    arms_table = _table(path, desc, "arms")
-    arms = {s: _names(path, _table(path, arms_table, s, f"arms.{s}"), "joints", f"arms.{s}") for s in SIDES}
-    extra = _names(path, desc, "extra_joints", "the top level", required=False)
+    arms, extra = _arm_joints(path, desc)
     listed = [j for s in SIDES for j in arms[s]] + list(extra)
-    twice = sorted({j for j in listed if listed.count(j) > 1})
-    if twice:
-        raise RobotError(f"{path}: joints listed twice in [arms] and extra_joints: {', '.join(twice)}")
     home_table = _table(path, desc, "home", required=False)
     home_angles = {j: _number(path, v, f"[home] {j}") for j, v in home_table.items()}
     collision = _table(path, desc, "collision", required=False)
@@ -253,18 +248,7 @@ def _build(path: Path, desc: dict, need_mapping: bool = True) -> Robot:
     names = tuple(model.joint(i).name for i in range(model.njnt))
     if model.nq != model.njnt or np.any(model.jnt_type != mujoco.mjtJoint.mjJNT_HINGE):
         raise RobotError(f"{mjcf}: robot joints must all be hinges")
-    manip = _table(path, desc, "manipulability", required=False)
-    manip_site = _text(path, manip, "site", "tcp", "[manipulability] ")
-    manip_joints = _names(path, manip, "joints", "[manipulability]", required=False)
-    for side in SIDES:
-        for site in SITES:
-            site_name = f"{side}_{manip_site if site == 'manipulability' else site}"
-            if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, site_name) < 0:
-                raise RobotError(f"{mjcf}: missing site {site_name}")
-    arm_set = {j for s in SIDES for j in arms[s]}
-    bad = [j for j in manip_joints if j not in names or j in arm_set]
-    if bad:
-        raise RobotError(f"{path}: [manipulability] joints must be non-arm model joints: {', '.join(bad)}")
+    manip_site, manip_joints = _manipulability(path, desc, model, mjcf, names, arms)
     limited = model.jnt_limited.astype(bool)
     lower = np.where(limited, model.jnt_range[:, 0], -np.inf)
     upper = np.where(limited, model.jnt_range[:, 1], np.inf)
@@ -312,6 +296,51 @@ def _build(path: Path, desc: dict, need_mapping: bool = True) -> Robot:
         description=path,
         subject_scale=_subject_scale(path, desc),
     )
+
+
+def _arm_joints(path: Path, desc: dict) -> tuple[dict[str, tuple[str, ...]], tuple[str, ...]]:
+    """Each arm's joints (``[arms.<side>] joints``) and the extra (trunk) joints, none listed twice.
+
+    Raises:
+        RobotError: a table or list missing or malformed, or a joint listed twice.
+    """
+    arms_table = _table(path, desc, "arms")
+    arms = {s: _names(path, _table(path, arms_table, s, f"arms.{s}"), "joints", f"arms.{s}") for s in SIDES}
+    extra = _names(path, desc, "extra_joints", "the top level", required=False)
+    listed = [j for s in SIDES for j in arms[s]] + list(extra)
+    twice = sorted({j for j in listed if listed.count(j) > 1})
+    if twice:
+        raise RobotError(f"{path}: joints listed twice in [arms] and extra_joints: {', '.join(twice)}")
+    return arms, extra
+
+
+def _manipulability(
+    path: Path,
+    desc: dict,
+    model: mujoco.MjModel,
+    mjcf: Path,
+    names: tuple[str, ...],
+    arms: dict[str, tuple[str, ...]],
+) -> tuple[str, tuple[str, ...]]:
+    """The ``[manipulability]`` site and non-arm joints, with every site of :data:`SITES` checked in
+    the compiled model.
+
+    Raises:
+        RobotError: a missing site, or a manipulability joint that is an arm's or not the model's.
+    """
+    manip = _table(path, desc, "manipulability", required=False)
+    manip_site = _text(path, manip, "site", "tcp", "[manipulability] ")
+    manip_joints = _names(path, manip, "joints", "[manipulability]", required=False)
+    for side in SIDES:
+        for site in SITES:
+            site_name = f"{side}_{manip_site if site == 'manipulability' else site}"
+            if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, site_name) < 0:
+                raise RobotError(f"{mjcf}: missing site {site_name}")
+    arm_set = {j for s in SIDES for j in arms[s]}
+    bad = [j for j in manip_joints if j not in names or j in arm_set]
+    if bad:
+        raise RobotError(f"{path}: [manipulability] joints must be non-arm model joints: {', '.join(bad)}")
+    return manip_site, manip_joints
 
 
 def _table(path: Path, desc: dict, key: str, where: str | None = None, required: bool = True) -> dict:
