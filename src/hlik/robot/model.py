@@ -19,7 +19,7 @@ from hlik.paths import robots_dir
 from hlik.robot.mapping import JointMapping
 from hlik.robot.model_file import COLLISION_GROUP as COLLISION_GROUP  # re-exported: models' geom groups
 from hlik.robot.model_file import VISUAL_GROUP as VISUAL_GROUP
-from hlik.robot.model_file import compile_model
+from hlik.robot.model_file import ModelFile, compile_model
 from hlik.tomlfile import read_toml
 
 if TYPE_CHECKING:  # scipy comes with the motion; `hlik robots` needs none
@@ -253,16 +253,6 @@ def _build(path: Path, desc: dict, need_mapping: bool = True) -> Robot:
     lower = np.where(limited, model.jnt_range[:, 0], -np.inf)
     upper = np.where(limited, model.jnt_range[:, 1], np.inf)
     home = _home(path, home_angles, names, compiled.welded, lower, upper)
-    velocity, velocity_source = _joint_limits(
-        path, desc, names, "velocity_limits", "rad/s", compiled.velocity, required=True
-    )
-    acceleration, acceleration_source = _joint_limits(
-        path, desc, names, "acceleration_limits", "rad/s^2", {}, required=False
-    )
-    jerk, jerk_source = _joint_limits(path, desc, names, "jerk_limits", "rad/s^3", {}, required=False)
-    effort, effort_source = _joint_limits(
-        path, desc, names, "effort_limits", "N m", compiled.effort, required=False
-    )
     mapping = _mapping(path, desc, names)
     missing = [j for s in SIDES for j in arms[s] if j not in {m.joint for m in mapping.joints}]
     if missing and need_mapping:
@@ -282,20 +272,28 @@ def _build(path: Path, desc: dict, need_mapping: bool = True) -> Robot:
         upper=upper,
         home=home,
         mapping=mapping,
-        velocity_limit=velocity,
-        velocity_source=velocity_source,
-        acceleration_limit=acceleration,
-        acceleration_source=acceleration_source,
-        jerk_limit=jerk,
-        jerk_source=jerk_source,
-        effort_limit=effort,
-        effort_source=effort_source,
+        **_motion_limits(path, desc, names, compiled),
         manipulability_site=manip_site,
         manipulability_joints=manip_joints,
         placement=_placement_rule(path, desc),
         description=path,
         subject_scale=_subject_scale(path, desc),
     )
+
+
+def _motion_limits(path: Path, desc: dict, names: tuple[str, ...], compiled: ModelFile) -> dict:
+    """The robot's per-joint speed (required), acceleration, jerk and effort limits with their
+    sources, as :class:`Robot`'s fields (the model's own where the TOML gives none)."""
+    fields: dict[str, object] = {}
+    for what, key, unit, model_values, required in (
+        ("velocity", "velocity_limits", "rad/s", compiled.velocity, True),
+        ("acceleration", "acceleration_limits", "rad/s^2", {}, False),
+        ("jerk", "jerk_limits", "rad/s^3", {}, False),
+        ("effort", "effort_limits", "N m", compiled.effort, False),
+    ):
+        values, source = _joint_limits(path, desc, names, key, unit, model_values, required=required)
+        fields[f"{what}_limit"], fields[f"{what}_source"] = values, source
+    return fields
 
 
 def _arm_joints(path: Path, desc: dict) -> tuple[dict[str, tuple[str, ...]], tuple[str, ...]]:
