@@ -56,7 +56,7 @@ class QPSettings(SolverSettings):
             criteria as in the paper; its least-squares cost is the square root).
         velocity_cost, acceleration_cost, jerk_cost: Weights of the smoothness terms.
         trunk_cost: Weight per rad of the extra (trunk) joints toward home
-            (:class:`~hlik.criteria.joints.TrunkUpright`; 0: none).
+            (:class:`~hlik.criteria.joints.TrunkUpright`; 0: none; robots without them: no term).
         damping: Levenberg-Marquardt damping of every step.
         max_iter: QP steps per frame at most (the first frame gets ten times more).
         tol: A frame has converged when no joint moves more than this in a step, rad.
@@ -85,7 +85,8 @@ class QPSettings(SolverSettings):
     velocity_cost: float = 0.02
     acceleration_cost: float = 0.01
     jerk_cost: float = 0.005
-    trunk_cost: float = 0.0
+    # ARMAR-III's hip upright (issue 28; tasks/ee_pose.toml and README "Trunk upright" say why 2)
+    trunk_cost: float = 2.0
     position_band: float = 0.0
     orientation_band: float = 0.0
     damping: float = 1e-6
