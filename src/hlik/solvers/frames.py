@@ -158,13 +158,15 @@ class StepConstraints:
     """What a step ``dq`` (n,) must keep: ``lower <= dq <= upper`` (n,) and ``rows @ dq <= bound``
     ((k, n), (k,)); ``soft`` (k,) the slack penalty of each row a step may miss (0: hard; None:
     every row hard), per unit of the largest diagonal entry of the step's Hessian
-    (:func:`hlik.solvers.qp_backend.solve_qp`)."""
+    (:func:`hlik.solvers.qp_backend.solve_qp`). ``misses_limits``: a caller's hard rows are among
+    the soft ones (the last resort; the frame is reported failed)."""
 
     lower: np.ndarray
     upper: np.ndarray
     rows: np.ndarray
     bound: np.ndarray
     soft: np.ndarray | None = None
+    misses_limits: bool = False
 
 
 def constrained_steps(
@@ -185,8 +187,11 @@ def constrained_steps(
     the collision rows soft (missed as little as the box and the torque rows allow: a pair the
     limits cannot pull back to its floor in time brakes, or backs out of the margin, as hard as
     they let it), then (4) the torque rows soft too, at a lower penalty (the body before the
-    torque). Without hard rows (4) is always feasible; the hard rows hold in every try, so where
-    none keeps them there is no step. The QP and JV take the first their solver can meet. The box
+    torque). (4) is always feasible without hard rows; with them, (5) gives way on them too, at the
+    collision rows' penalty, as the last resort: a joint that arrives at a caller's bound faster
+    than its acceleration limit can stop it brakes as hard as the box allows and comes back,
+    instead of coasting past it as a frame with no step did (a frame that takes it is reported
+    failed). The QP and JV take the first their solver can meet. The box
     itself always holds: an acceleration limit given up for the margin was a jump of 40 times the
     limit, for a miss of the margin by 0.1 mm; and a collision row relaxed to "no worse than the
     step's start" let the arm coast into the body at its speed.
@@ -212,6 +217,9 @@ def constrained_steps(
     if len(b_box):
         torque = np.full(len(b_box), TORQUE_PENALTY)
         tries.append(StepConstraints(lower, upper, a, b, np.concatenate([torque, hard, collision])))
+    if len(b_hard):
+        torque, limits = np.full(len(b_box), TORQUE_PENALTY), np.full(len(b_hard), COLLISION_PENALTY)
+        tries.append(StepConstraints(lower, upper, a, b, np.concatenate([torque, limits, collision]), True))
     return tries
 
 
@@ -221,12 +229,12 @@ def solve_step(
     tries: list[StepConstraints],
     solver: str,
     band_rows: int = 0,
-) -> np.ndarray | None:
+) -> tuple[np.ndarray | None, StepConstraints | None]:
     """The step dq (n,) minimising ``1/2 dq' H dq + g' dq`` under the first of ``tries``
-    (:func:`constrained_steps`) the QP solver can meet, or None where it meets none. With
-    ``band_rows`` > 0 the first try ends in that many rows of the hands' band; where no step keeps
-    them, the step keeps the band as near as the rest allows (:func:`nearest_band`), before the
-    tries without it."""
+    (:func:`constrained_steps`) the QP solver can meet, and that try; (None, None) where it meets
+    none (the frame then stays where it is, failed: limits hold, nothing NaN). With ``band_rows`` >
+    0 the first try ends in that many rows of the hands' band; where no step keeps them, the step
+    keeps the band as near as the rest allows (:func:`nearest_band`), before the tries without it."""
     for k, c in enumerate(tries):
         dq = solve_qp(hessian, gradient, c.lower, c.upper, solver, c.rows, c.bound, c.soft)
         if dq is None and k == 0 and band_rows:
@@ -234,9 +242,8 @@ def solve_step(
             if nearest is not None:
                 dq = solve_qp(hessian, gradient, c.lower, c.upper, solver, c.rows, nearest)
         if dq is not None:
-            # no step found: the frame stays where it is, failed (limits hold, nothing NaN)
-            return dq if np.all(np.isfinite(dq)) else None
-    return None
+            return (dq, c) if np.all(np.isfinite(dq)) else (None, None)
+    return None, None
 
 
 def hand_band(term: Term, settings) -> float:

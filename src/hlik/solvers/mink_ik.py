@@ -13,6 +13,7 @@ hands' band, with the rows that give way where no step keeps them all
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from dataclasses import replace
 
 import mink
 import numpy as np
@@ -59,11 +60,11 @@ class MinkSolver:
         progress: Called with each frame index as it is solved.
 
     Where no step keeps every row, the collision rows give way first (missed as little as the rest
-    allows), then the box's torque rows; the box's bounds and ``limits`` hold in every step, so a
-    frame where no step keeps them fails (reported in the diagnostics), it never passes them
-    silently. A ``mink.Limit`` sees positions only, so one tighter than a joint's stops cannot brake
-    ahead of its bound as the frame box does: keep a margin of about v²/(2a) (the joint's speed
-    and acceleration limits) or expect failed frames.
+    allows), then the box's torque rows, and last ``limits``' rows, in a frame then reported failed
+    (:func:`~hlik.solvers.frames.constrained_steps`); the box's bounds hold in every step. A
+    ``mink.Limit`` sees positions only: a joint may arrive at its row faster than its acceleration
+    limit can stop it there, and then brakes past it as hard as the box allows. Put the row about
+    v²/(2a) (the joint's speed and acceleration limits) inside the bound that must hold.
     """
 
     name = "mink"
@@ -115,6 +116,7 @@ class MinkSolver:
             self._aim(tasks, hands, sample)
             for limit in band:
                 limit.set_tasks(tasks)
+            missed = False  # a step gave way on the caller's limits
 
             def step(x: np.ndarray) -> np.ndarray | None:
                 config.update(x)
@@ -124,10 +126,15 @@ class MinkSolver:
                 a_band, b_band = _rows(band, config, sample.dt, n) if band else (None, None)
                 tries = constrained_steps(box, x, self.max_step, a_col, b_col, a_band, b_band, a_hard, b_hard)
                 n_band = 0 if b_band is None else len(b_band)
-                return solve_step(objective.P, objective.q, tries, self.solver, n_band)
+                dq, taken = solve_step(objective.P, objective.q, tries, self.solver, n_band)
+                if taken is not None and taken.misses_limits:
+                    nonlocal missed
+                    missed = True
+                return dq
 
             steps = step_budget(k, self.max_iter)
-            return iterate(step, q, box, steps, self.tol, damp_reversals=True)
+            result = iterate(step, q, box, steps, self.tol, damp_reversals=True)
+            return replace(result, converged=False, failed=True) if missed else result
 
         return track(problem, solve_frame, self.progress, MotionLimits.of(robot, self.motion_limits))
 
