@@ -255,6 +255,21 @@ def _fraction_within(rows: np.ndarray, rhs: np.ndarray, x: np.ndarray, v: np.nda
     return min(max(float(np.min(limits, initial=1.0)), 0.0), 1.0)
 
 
+def _null_within(
+    task: np.ndarray, null: np.ndarray, rows: np.ndarray, rhs: np.ndarray, max_step: float, last: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """The step ``task + null`` (n,) with the null-space step cut so that it breaks none of the
+    ``rows`` (k, n) the task step left free (nor worsens one it could not meet), nor ``max_step``;
+    and the null-space step to remember: the cut one, or ``last`` where it was cut to nothing, so
+    that a reversal is still told (else the null space zig-zags against the rows at the full
+    bound)."""
+    n = len(task)
+    within = np.vstack([rows, np.eye(n), -np.eye(n)])
+    limit = np.concatenate([np.maximum(rhs, rows @ task), np.full(2 * n, max_step)])
+    null = null * _fraction_within(within, limit, task, null)
+    return task + null, (null if np.any(null) else last)
+
+
 def _avoiding_step(
     jac: np.ndarray,
     xdot: np.ndarray,
@@ -398,20 +413,11 @@ def step(
     tries = constrained_steps(box, q, settings.max_step, a_col, b_col)
     rows, rhs = tries[0].rows, tries[0].bound  # every row: the torque limits and the collision rows
     constrained = memory.constrained
-    if len(rhs) and np.all(np.isfinite(dq)):
-        if constrained or np.any(rows @ dq > rhs + 1e-9):
-            constrained = True
-            task, null = _avoiding_step(jac, xdot, weights, damping, tries, null_step)
-            null, null_bound = bounded(null)
-            # the null-space step may not break the rows the task step left free (nor worsen one
-            # it could not meet), nor max_step
-            within = np.vstack([rows, np.eye(robot.dof), -np.eye(robot.dof)])
-            limit = np.concatenate([np.maximum(rhs, rows @ task), np.full(2 * robot.dof, settings.max_step)])
-            null = null * _fraction_within(within, limit, task, null)
-            dq = task + null
-            # a null-space step cut to nothing keeps the last one, so that a reversal is still told
-            # (else the null space zig-zags against the rows at the full bound)
-            null = null if np.any(null) else memory.null
+    if len(rhs) and np.all(np.isfinite(dq)) and (constrained or np.any(rows @ dq > rhs + 1e-9)):
+        constrained = True
+        task, null = _avoiding_step(jac, xdot, weights, damping, tries, null_step)
+        null, null_bound = bounded(null)
+        dq, null = _null_within(task, null, rows, rhs, settings.max_step, memory.null)
     if not np.all(np.isfinite(dq)):
         dq, null = np.zeros(robot.dof), np.zeros(robot.dof)  # a failed step stays put: nothing NaN
     return dq, Memory(jla, null, null_bound, constrained)
