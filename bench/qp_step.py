@@ -7,15 +7,21 @@ terms, smoothness, SYN and HJA_r and the joint limits, self-collision avoidance 
 below has none) and the frame box of ``solvers/limits.py`` off (mink's ConfigurationLimit holds
 the position stops only); two more lines show hlik with the frame box, and with it and
 self-collision avoidance. mink: two FrameTasks, a PostureTask to the robot's home and
-ConfigurationLimit (daqp both). Run by hand: ``python bench/qp_step.py``; the last line is
-``ratio hlik/mink: X.XX`` (median CPU time per frame, hlik over mink). The machine has 2 shared
+ConfigurationLimit (daqp both). Then the QP (on mink since issue 29) against the QP of a git
+revision, ``--against`` (default ``d2f408f``, the last that assembled its own problem for daqp), on
+ARMAR-6 over two KIT takes × 2 s (:mod:`mink_qp`, each checkout in a subprocess, alternating). Run
+by hand: ``python bench/qp_step.py [--against REV]``; the last lines are ``ratio hlik/mink: X.XX``
+(median CPU time per frame, hlik over mink) and ``ratio qp/REV: X.XX``. The machine has 2 shared
 cores: read medians and ratios.
 """
 
 from __future__ import annotations
 
+import argparse
+import tempfile
 import time
 from dataclasses import replace
+from pathlib import Path
 
 import mink
 import numpy as np
@@ -70,7 +76,28 @@ def hlik_frames(problem, settings, learned) -> tuple[float, np.ndarray]:
     return (time.process_time() - start) / problem.n_frames, result.diagnostics.iterations
 
 
+def against(revision: str) -> float:
+    """This checkout's QP over the QP of ``revision``: median CPU time per frame, ARMAR-6, two KIT
+    takes x 2 s, SYN + HJA_r (:mod:`mink_qp`)."""
+    import mink_qp  # beside this file
+
+    takes = sorted((mink_qp.DATA / "kit_bimanual").glob("*.xml"))[:2]
+    ms: dict[str, list[float]] = {"qp": [], revision: []}
+    with tempfile.TemporaryDirectory() as tmp:
+        sources = {"qp": mink_qp.ROOT / "src", revision: mink_qp.checkout(revision, Path(tmp))}
+        for _ in range(REPEATS):
+            for label, src in sources.items():
+                ms[label].append(mink_qp.run(src, "armar6", "SYN,HJA_r", 2.0, takes)["ms"])
+    for label, values in ms.items():
+        name = "qp" if label == "qp" else f"qp at {label}"
+        print(f"{name:26s} {np.median(values):7.2f} ms/frame (CPU, KIT takes)")
+    return float(np.median(ms["qp"]) / np.median(ms[revision]))
+
+
 def main() -> None:
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--against", default="d2f408f", help="git revision of the QP to compare with")
+    args = parser.parse_args()
     robot = hlik.load_robot("armar6")
     motion = hlik.load_motion(demo_motion_path(), rate=100.0).crop(2.0, 4.0)
     problem = build_problem(motion, robot)
@@ -105,7 +132,9 @@ def main() -> None:
     med = {k: float(np.median(v)) for k, v in runs.items()}
     for name, value in med.items():
         print(f"{name:26s} {1e3 * value:7.2f} ms/frame (CPU, median of {REPEATS}), {steps[name]:.1f} steps")
+    revision = against(args.against)
     print(f"ratio hlik/mink: {med['hlik'] / med['mink']:.2f}")
+    print(f"ratio qp/{args.against}: {revision:.2f}")
 
 
 if __name__ == "__main__":
