@@ -307,9 +307,9 @@ def test_the_qp_is_its_stack_of_least_squares_terms_on_mink(name):
 
 
 def test_a_users_mink_limit_is_never_dropped_by_the_fallbacks():
-    """MinkSolver's fallbacks (the collision rows, then the torque rows soft) give way on hlik's
-    rows, never the caller's limits: with a limit no step can meet, every frame after the first
-    fails and says so (it passed for converged when the last fallback was the box alone)."""
+    """MinkSolver's fallbacks give way on hlik's rows first and on the caller's limits only last,
+    reporting the frame: with a limit no step can meet, every frame fails and says so, unconverged
+    (it passed for converged when the last fallback was the box alone)."""
     from mink.limits import Constraint, Limit
 
     from hlik.solvers.mink_ik import MinkSolver
@@ -360,3 +360,18 @@ def test_a_users_bound_with_a_braking_margin_holds_where_the_joint_arrives_at_sp
     assert over.any() and np.all(traj.diagnostics.failed[over])  # each frame past the row is reported
     assert traj.diagnostics.failed.mean() < 0.2
     assert np.median(np.linalg.norm(traj.tcp_pos - traj.targets.pos, axis=-1)) < 0.01
+
+
+def test_the_qps_collision_settings_reach_its_collision_rows():
+    """``collision_margin``, ``collision_detect`` and ``collision_gain`` of QPSettings act on the
+    QP's steps (MinkSolver's SelfCollisionLimit once ran with its own defaults whatever they said;
+    found in review): a wider margin moves 2-Panda's arms, the defaults do not."""
+    r = load_robot("dual_panda")
+    motion = demo_motion().crop(2.0, 2.3)
+    plain = retarget(motion, r, qp_solver(QPSettings()))
+    same = retarget(motion, r, qp_solver(QPSettings(collision_margin=0.01, collision_detect=0.10)))
+    wide = retarget(
+        motion, r, qp_solver(QPSettings(collision_margin=0.08, collision_detect=0.3, collision_gain=0.1))
+    )
+    np.testing.assert_array_equal(same.q, plain.q)
+    assert np.abs(wide.q - plain.q).max() > 0.05

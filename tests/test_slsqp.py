@@ -480,3 +480,27 @@ def test_a_bug_in_a_callback_stops_the_run_instead_of_failing_a_frame(monkeypatc
     monkeypatch.setattr(fPOS, "residual", broken)
     with pytest.raises(RuntimeError, match="a bug in the criterion"):
         solve_problem(solve, r, motion, targets, placement)
+
+
+def test_the_fallback_point_misses_the_body_constraints_least_then_has_the_lowest_objective():
+    """Where NLopt stops without a result the frame keeps, of the points it evaluated, the one that
+    missed the collision and box constraints least (beyond their tolerances), the lowest objective
+    among equals; not the lowest objective alone, which had put 2-Panda's arm into its chest."""
+    from hlik.solvers.slsqp.solver import Evaluated
+
+    seen = Evaluated()
+    objective = seen.objective(lambda x, grad: float(x[0]))
+    constraint = seen.constraint(lambda result, x, grad: result.__setitem__(slice(None), x[1]), 0.01)
+    points = {"deep": (-5.0, 0.3), "shallow": (2.0, 0.02), "kept a": (4.0, 0.0), "kept b": (3.0, -1.0)}
+    for x0, x1 in points.values():
+        x = np.array([x0, x1])
+        objective(x, np.empty(0))
+        constraint(np.empty(1), x, np.empty((0, 2)))
+    x, miss = seen.best()
+    np.testing.assert_array_equal(x, [3.0, -1.0])
+    assert miss == 0.0
+    for key in ("kept a", "kept b"):  # without the points that keep it: the smallest miss wins
+        seen.violation[np.array(points[key]).tobytes()] = 1.0
+    x, miss = seen.best()
+    np.testing.assert_array_equal(x, [2.0, 0.02])
+    assert miss == pytest.approx(0.01)

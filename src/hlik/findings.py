@@ -69,7 +69,8 @@ def run_warnings(traj: Trajectory, motion: HumanMotion, ev: Evaluation, rate: fl
     if d.n_failed:
         notes.append(f"the solver failed in {share(d.n_failed)}")
     if d.n_unconverged:
-        notes.append(f"the solver stopped at its iteration cap in {share(d.n_unconverged)}")
+        why = "iteration cap, or SLSQP's roundoff limit"
+        notes.append(f"the solver stopped before converging ({why}) in {share(d.n_unconverged)}")
     touching = int(np.count_nonzero(ev.collisions))
     if touching:
         notes.append(f"the robot is in self-collision in {share(touching)}")

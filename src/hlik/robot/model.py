@@ -253,6 +253,7 @@ def _build(path: Path, desc: dict, need_mapping: bool = True) -> Robot:
     lower = np.where(limited, model.jnt_range[:, 0], -np.inf)
     upper = np.where(limited, model.jnt_range[:, 1], np.inf)
     home = _home(path, home_angles, names, compiled.welded, lower, upper)
+    limits = _motion_limits(path, desc, names, compiled)  # checked before the mapping, as the file reads
     mapping = _mapping(path, desc, names)
     missing = [j for s in SIDES for j in arms[s] if j not in {m.joint for m in mapping.joints}]
     if missing and need_mapping:
@@ -272,7 +273,7 @@ def _build(path: Path, desc: dict, need_mapping: bool = True) -> Robot:
         upper=upper,
         home=home,
         mapping=mapping,
-        **_motion_limits(path, desc, names, compiled),
+        **limits,
         manipulability_site=manip_site,
         manipulability_joints=manip_joints,
         placement=_placement_rule(path, desc),

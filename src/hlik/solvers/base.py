@@ -23,7 +23,8 @@ class Diagnostics:
 
     Attributes:
         iterations: Steps (QP, JV, mink) or objective evaluations (SLSQP) spent on the frame.
-        converged: The frame stopped by the solver's tolerance, not by its iteration cap.
+        converged: The frame stopped by the solver's tolerance, not by its iteration cap (nor, in
+            SLSQP, by NLopt's roundoff limit at a point that keeps the constraints).
         failed: The solver gave no usable solution; the frame keeps the best finite configuration
             it evaluated, or the previous frame's.
         solve_time: Wall-clock seconds spent on the frame.
@@ -50,7 +51,8 @@ class Diagnostics:
 
     @property
     def n_unconverged(self) -> int:
-        """Frames that ended at the iteration cap without failing."""
+        """Frames that ended without converging and without failing (the iteration cap; SLSQP's
+        roundoff limit)."""
         return int(np.count_nonzero(~self.converged & ~self.failed))
 
 

@@ -20,9 +20,9 @@ given the two previous solutions ``q1 = q_t-1``, ``q2 = q_t-2`` (``v1 = (q1 - q2
   acceleration), within ``torque_fraction`` of the effort limits: linear rows on ``q_t``.
 
 The box and the rows of a frame are a :class:`hlik.solvers.frames.JointBox`; the QP takes them as
-its step bounds and inequalities, SLSQP as linear constraints, JV as the box its steps are scaled
-into (and rows of its constrained step), and ``MinkSolver`` as a ``mink.Limit``
-(:class:`hlik.solvers.mink_tasks.FrameBoxLimit`). Written once here, so that they cannot drift apart.
+its step bounds and inequalities (:class:`hlik.solvers.mink_ik.MinkSolver`, for ``qp`` and
+``mink``), SLSQP as linear constraints, JV as the box its steps are scaled into (and rows of its
+constrained step). Written once here, so that they cannot drift apart.
 """
 
 from __future__ import annotations

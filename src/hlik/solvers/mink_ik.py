@@ -42,8 +42,9 @@ class MinkSolver:
         tasks: mink tasks; ``FrameTask`` on ``<side>_tcp`` sites follow the hands. The
             :class:`~hlik.solvers.mink_tasks.CriterionTask`\ s share one kinematics pass per step.
         limits: mink limits (e.g. ``ConfigurationLimit``, :class:`hlik.solvers.mink_tasks.HumanJointLimit`),
-            kept in every step; a :class:`~hlik.solvers.mink_tasks.HandBandLimit` is the hands'
-            band, kept where a step can and otherwise as nearly as the rest allows. Each frame's
+            kept wherever a step can keep them (the last fallback gives way on them, below); a
+            :class:`~hlik.solvers.mink_tasks.HandBandLimit` is the hands' band, kept where a step
+            can and otherwise as nearly as the rest allows. Each frame's
             joint box (:mod:`hlik.solvers.limits`, what every hlik solver keeps: stops with their
             margin, speed, acceleration, braking, torque) bounds every step.
         max_iter: Steps per frame at most (the first frame gets ten times more).
@@ -55,6 +56,8 @@ class MinkSolver:
         motion_limits: Stop margin, acceleration and torque limits of the frame box.
         self_collision: Keep the robot's collision geoms apart
             (:class:`~hlik.solvers.mink_tasks.SelfCollisionLimit`, the velocity damper with braking).
+        collision_margin, collision_detect, collision_gain: Its margin and how near a pair is
+            looked at, m, and the share of the gap a pair may close per step (the QP's settings).
         first_tasks: The first frame's tasks (default: ``tasks``), e.g. without the criteria of
             motion, which have no past there.
         progress: Called with each frame index as it is solved.
@@ -82,6 +85,9 @@ class MinkSolver:
         self_collision: bool = True,
         first_tasks: Sequence[mink.Task] | None = None,
         progress: Callable[[int], None] | None = None,
+        collision_margin: float = 0.01,
+        collision_detect: float = 0.10,
+        collision_gain: float = 0.5,
     ):
         self.progress = progress
         self.tasks, self.limits = list(tasks), list(limits)
@@ -89,6 +95,7 @@ class MinkSolver:
         self.motion_limits = motion_limits or LimitSettings()
         self.max_iter, self.tol, self.max_step = max_iter, tol, max_step
         self.damping, self.solver, self.self_collision = damping, solver, self_collision
+        self.collision = (collision_margin, collision_detect, collision_gain)
 
     def __call__(self, problem: Problem) -> SolverResult:
         """Joint angles (T, n), each frame iterated to convergence from the previous one."""
@@ -104,7 +111,7 @@ class MinkSolver:
         cache = StateCache(robot, tuple(sorted({i for t in criteria for i in t.term.sites})))
         for task in criteria:
             task.cache = cache
-        collision = SelfCollisionLimit(robot, cache=cache) if self.self_collision else None
+        collision = SelfCollisionLimit(robot, *self.collision, cache=cache) if self.self_collision else None
         band = [lim for lim in self.limits if isinstance(lim, HandBandLimit)]
         hard = [lim for lim in self.limits if not isinstance(lim, HandBandLimit)]
         n = robot.dof
@@ -124,6 +131,8 @@ class MinkSolver:
                 a_hard, b_hard = _rows(hard, config, sample.dt, n)
                 a_col, b_col = _rows([collision] if collision else [], config, sample.dt, n)
                 a_band, b_band = _rows(band, config, sample.dt, n) if band else (None, None)
+                if b_band is not None and not len(b_band):  # no hand target task in this stack
+                    a_band, b_band = None, None
                 tries = constrained_steps(box, x, self.max_step, a_col, b_col, a_band, b_band, a_hard, b_hard)
                 n_band = 0 if b_band is None else len(b_band)
                 dq, taken = solve_step(objective.P, objective.q, tries, self.solver, n_band)

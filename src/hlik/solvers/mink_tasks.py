@@ -3,8 +3,9 @@
 :class:`CriterionTask` adapts any :class:`hlik.criteria.base.Term` (the same residual and Jacobian the
 QP solver and the metrics use); the frame's context is set per frame with :meth:`CriterionTask.set_sample`.
 :class:`HumanJointLimit` keeps the mapped joints inside the human's range as hard inequalities;
-:class:`FrameBoxLimit` keeps a frame's joint box of :mod:`hlik.solvers.limits` (position stops with
-their margin, speed, acceleration, braking, torque), the same bounds every hlik solver keeps.
+:class:`SelfCollisionLimit` keeps the robot's collision geoms apart and :class:`HandBandLimit` the
+hands in their band, for :class:`hlik.solvers.mink_ik.MinkSolver`, which keeps the frame's joint
+box of :mod:`hlik.solvers.limits` itself.
 """
 
 from __future__ import annotations
@@ -113,30 +114,6 @@ class HumanJointLimit(Limit):
         select = np.zeros((len(self.idx), self.n))
         select[np.arange(len(self.idx)), self.idx] = 1.0
         return Constraint(G=np.vstack([select, -select]), h=np.concatenate([upper, lower]))
-
-
-class FrameBoxLimit(Limit):
-    """A frame's :class:`~hlik.solvers.frames.JointBox` as a ``mink.Limit``: ``lower <= q + dq <=
-    upper`` on its finite sides, and its rows ``rows @ (q + dq) <= bound``, for the configuration
-    mink steps from. :class:`hlik.solvers.mink_ik.MinkSolver` sets the box each frame
-    (:meth:`set_box`); a joint outside the box may only move back."""
-
-    def __init__(self, n: int, max_step: float = np.inf):
-        self.n, self.max_step = n, max_step
-        self.box: JointBox | None = None
-
-    def set_box(self, box: JointBox) -> None:
-        self.box = box
-
-    def compute_qp_inequalities(self, configuration: mink.Configuration, dt: float) -> Constraint:
-        if self.box is None:
-            return Constraint()
-        q, eye = configuration.q, np.eye(self.n)
-        low, high = self.box.step_bounds(q, self.max_step)  # a joint outside may only move back
-        upper, lower = np.isfinite(high), np.isfinite(low)
-        rows, bound = self.box.step_rows(q)
-        g = np.vstack([eye[upper], -eye[lower], rows])
-        return Constraint(G=g, h=np.concatenate([high[upper], -low[lower], bound]))
 
 
 class HandBandLimit(Limit):

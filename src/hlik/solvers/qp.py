@@ -180,6 +180,9 @@ def build_solver(
         self_collision=settings.self_collision,
         first_tasks=stack("pose", True),
         progress=progress,
+        collision_margin=settings.collision_margin,
+        collision_detect=settings.collision_detect,
+        collision_gain=settings.collision_gain,
     )
 
 
