@@ -83,7 +83,7 @@ def run_summary(title: str, traj, motion, solve_time: float, rrd: Path, npz: Pat
     d = traj.diagnostics
     table.add_row(
         "solver",
-        f"{d.n_failed} failed, {d.n_unconverged} unconverged (at the iteration cap) of "
+        f"{d.n_failed} failed, {d.n_unconverged} unconverged (iteration cap; SLSQP: roundoff) of "
         f"{traj.n_frames} frames; median {np.median(d.iterations):.0f} iterations/frame",
     )
     for i, side in enumerate(("left", "right")):
