@@ -375,3 +375,38 @@ def test_the_qps_collision_settings_reach_its_collision_rows():
     )
     np.testing.assert_array_equal(same.q, plain.q)
     assert np.abs(wide.q - plain.q).max() > 0.05
+
+
+@pytest.mark.parametrize("name", ["jv", "slsqp"])
+def test_jv_and_slsqp_keep_a_users_mink_limit_as_the_qp_does(name):
+    """A ``mink.Limit`` is written once and every optimising solver keeps it: JV as rows of its
+    constrained step (at each step), SLSQP as linear constraints taken at each frame's start. The
+    bound on ARMAR-6's left elbow from the test above (1.2 rad, the row v^2/(2a) inside it, below
+    the first frame's mapped pose) binds without it and holds with it; a frame past the row is
+    reported failed."""
+    from mink.limits import Constraint, Limit
+
+    from hlik.solvers import jv, slsqp
+
+    r = load_robot("armar6")
+    j = r.joint_names.index("ArmL6_Elb2")
+    bound = 1.2
+    margin = r.velocity_limit[j] ** 2 / (2.0 * r.acceleration_limit[j])
+
+    class Below(Limit):
+        def compute_qp_inequalities(self, configuration, dt):
+            g = np.zeros((1, r.dof))
+            g[0, j] = 1.0
+            return Constraint(G=g, h=np.array([bound - margin - configuration.q[j]]))
+
+    module, settings = {"jv": (jv, jv.JVSettings), "slsqp": (slsqp, slsqp.SLSQPSettings)}[name]
+    factory = getattr(module, f"{name}_solver")
+    motion = demo_motion().crop(0.0, 2.0)
+    s = settings(criteria=("SYN", "HJA_r"))
+    free = retarget(motion, r, factory(s), learned=learn(r))
+    traj = retarget(motion, r, factory(s, limits=[Below()]), learned=learn(r))
+    assert free.q[:, j].max() > bound  # measured: JV 1.24, SLSQP 1.64 rad
+    assert np.all(traj.q[:, j] <= bound), traj.q[:, j].max()
+    over = traj.q[:, j] > bound - margin + 1e-6
+    assert np.all(traj.diagnostics.failed[over]) and traj.diagnostics.failed.mean() < 0.05
+    assert np.median(np.linalg.norm(traj.tcp_pos - traj.targets.pos, axis=-1)) < 0.01

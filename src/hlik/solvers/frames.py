@@ -12,8 +12,8 @@ bounded by the joint limits moved in by their margin only.
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
-from dataclasses import dataclass
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, replace
 
 import mujoco
 import numpy as np
@@ -244,6 +244,32 @@ def solve_step(
         if dq is not None:
             return (dq, c) if np.all(np.isfinite(dq)) else (None, None)
     return None, None
+
+
+def limit_rows(limits: Sequence, config, dt: float, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """The inequality rows ``G dq <= h`` of ``limits`` (``mink.Limit``\\ s) at the configuration
+    ``config`` (a ``mink.Configuration`` whose kinematics are current), stacked: (k, n), (k,)."""
+    g: list[np.ndarray] = [np.zeros((0, n))]
+    h: list[np.ndarray] = [np.zeros(0)]
+    for limit in limits:
+        c = limit.compute_qp_inequalities(config, dt)
+        if c.G is not None and c.h is not None:  # mink's Constraint.inactive
+            g.append(c.G)
+            h.append(c.h)
+    return np.vstack(g), np.concatenate(h)
+
+
+def box_with_limits(box: JointBox, limits: Sequence, config, q: np.ndarray, dt: float) -> JointBox:
+    """``box`` with a caller's ``mink.Limit`` rows at ``q`` (n,) among its rows, as rows on the
+    configuration: ``G q' <= h + G q`` (exact for limits linear in q, such as a joint's bound;
+    linearised at ``q`` otherwise). Overwrites ``config``'s configuration."""
+    config.update(q)
+    g, h = limit_rows(limits, config, dt, len(q))
+    if not len(h):
+        return box
+    rows = g if box.rows is None else np.vstack([box.rows, g])
+    bound = h + g @ q if box.bound is None else np.concatenate([box.bound, h + g @ q])
+    return replace(box, rows=rows, bound=bound)
 
 
 def hand_band(term: Term, settings) -> float:

@@ -27,7 +27,9 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
+from functools import partial
 
+import mink
 import mujoco
 import numpy as np
 
@@ -48,6 +50,7 @@ from hlik.solvers.frames import (
     collision_rows,
     constrained_steps,
     iterate,
+    limit_rows,
     step_budget,
     track,
 )
@@ -135,12 +138,14 @@ class Memory:
         constrained: A step of this frame met the rows only by the constrained step, so the later
             ones take it too (else the free and the constrained steps took turns, a two-cycle
             until the iteration cap in 13 % of ARMAR-III's frames beside its hip).
+        missed: A step of this frame gave way on a caller's limits (the frame is then failed).
     """
 
     jla: np.ndarray
     null: np.ndarray
     null_bound: float
     constrained: bool = False
+    missed: bool = False
 
 
 def chan_dubey(q: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> tuple[float, np.ndarray]:
@@ -277,17 +282,18 @@ def _avoiding_step(
     damping: float,
     tries: Sequence[StepConstraints],
     null_step: Callable[[np.ndarray, np.ndarray], np.ndarray],
-) -> tuple[np.ndarray, np.ndarray]:
+) -> tuple[np.ndarray, np.ndarray, StepConstraints | None]:
     """The task step under the rows (:func:`avoiding_least_norm`) and the null-space step of the
-    targets and the rows it holds at their bound (before bounding), each (n,): the first of
-    ``tries`` (:func:`hlik.solvers.frames.constrained_steps`) that can be met; if none can, zero."""
+    targets and the rows it holds at their bound (before bounding), each (n,), under the first of
+    ``tries`` (:func:`hlik.solvers.frames.constrained_steps`) that can be met, and that try; if
+    none can, zeros and None."""
     n = jac.shape[1]
     for c in tries:
         task = avoiding_least_norm(jac, xdot, weights, damping, c.rows, c.bound, c.lower, c.upper, c.soft)
         if task is not None:
             active = c.rows @ task >= c.bound - 1e-7
-            return task, null_step(np.vstack([jac, c.rows[active]]), task)
-    return np.zeros(n), np.zeros(n)
+            return task, null_step(np.vstack([jac, c.rows[active]]), task), c
+    return np.zeros(n), np.zeros(n), None
 
 
 def criterion_terms(robot: Robot, settings: JVSettings, learned: Learned | None) -> list[tuple[Term, float]]:
@@ -365,12 +371,14 @@ def step(
     bounds: DistanceBounds | None = None,
     stop_if_reached: bool = False,
     floors: tuple[np.ndarray, np.ndarray] | None = None,
+    hard: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> tuple[np.ndarray, Memory]:
     """One JV step from ``q`` (n,) within ``box`` (default: the joint limits), keeping the collision
     ``pairs`` apart (:func:`avoiding_least_norm`, if given; ``bounds`` carried across steps; none
     closer than its ``floors``, :func:`~hlik.solvers.frames.collision_floors`): the
     joint change dq (n,), before clipping, and the new memory. ``stop_if_reached``: no step (zeros)
-    where :func:`targets_reached`.
+    where :func:`targets_reached`. ``hard``: a caller's limit rows on the step, (k, n), (k,)
+    (:func:`~hlik.solvers.frames.limit_rows`), kept as :func:`constrained_steps` says.
 
     The null-space bound halves whenever the null-space step reverses: the steep H (and the
     criteria) make bounded gradient steps of a fixed size zig-zag across their minimum, so a frame
@@ -410,26 +418,32 @@ def step(
     a_col, b_col = np.zeros((0, robot.dof)), np.zeros(0)
     if pairs is not None and len(pairs):
         a_col, b_col = collision_rows(robot, data, pairs, bounds, settings, floors)  # q's kinematics in data
-    tries = constrained_steps(box, q, settings.max_step, a_col, b_col)
+    a_hard, b_hard = hard if hard is not None else (None, None)
+    tries = constrained_steps(box, q, settings.max_step, a_col, b_col, a_hard=a_hard, b_hard=b_hard)
     rows, rhs = tries[0].rows, tries[0].bound  # every row: the torque limits and the collision rows
-    constrained = memory.constrained
+    constrained, missed = memory.constrained, memory.missed
     if len(rhs) and np.all(np.isfinite(dq)) and (constrained or np.any(rows @ dq > rhs + 1e-9)):
         constrained = True
-        task, null = _avoiding_step(jac, xdot, weights, damping, tries, null_step)
+        task, null, taken = _avoiding_step(jac, xdot, weights, damping, tries, null_step)
+        missed = missed or (taken is not None and taken.misses_limits)
         null, null_bound = bounded(null)
         dq, null = _null_within(task, null, rows, rhs, settings.max_step, memory.null)
     if not np.all(np.isfinite(dq)):
         dq, null = np.zeros(robot.dof), np.zeros(robot.dof)  # a failed step stays put: nothing NaN
-    return dq, Memory(jla, null, null_bound, constrained)
+    return dq, Memory(jla, null, null_bound, constrained, missed)
 
 
 def solve(
     problem: Problem,
     settings: JVSettings = JVSettings(),
     progress: Callable[[int], None] | None = None,
+    limits: Sequence[mink.Limit] = (),
 ) -> SolverResult:
-    """Retarget frame by frame; diagnostics count the JV steps per frame."""
+    """Retarget frame by frame; diagnostics count the JV steps per frame. ``limits``: a caller's
+    ``mink.Limit``\\ s, their rows kept at each step as the QP keeps them (the last fallback gives way
+    on them, and the frame is then reported failed)."""
     robot, learned = problem.robot, problem.learned
+    config = mink.Configuration(robot.model) if limits else None
     tasks, first = list(target_terms(settings.scenario)), list(target_terms("pose"))
     criteria = criterion_terms(robot, settings, learned)
     data = mujoco.MjData(robot.model)
@@ -443,7 +457,7 @@ def solve(
             memory = Memory(
                 chan_dubey(q, robot.lower, robot.upper)[1], np.zeros(robot.dof), settings.max_null
             )
-        memory = replace(memory, null_bound=settings.max_null, constrained=False)
+        memory = replace(memory, null_bound=settings.max_null, constrained=False, missed=False)
 
         taken = 0
         floors = collision_floors(robot, data, pairs, box, settings, bounds)
@@ -452,6 +466,10 @@ def solve(
             nonlocal memory, taken
             assert memory is not None
             stack = first if k == 0 else tasks
+            hard = None
+            if config is not None:
+                config.update(x)
+                hard = limit_rows(limits, config, frame.dt, robot.dof)
             # the first step is always taken, so that the hands follow a target that moves by less
             # than the thresholds, and the null space acts once per frame
             dq, memory = step(
@@ -468,11 +486,16 @@ def solve(
                 bounds,
                 taken > 0,
                 floors,
+                hard,
             )
             taken += 1
             return dq
 
-        return iterate(jv_step, q, box, step_budget(k, settings.max_iter), settings.tol, damp_reversals=True)
+        result = iterate(
+            jv_step, q, box, step_budget(k, settings.max_iter), settings.tol, damp_reversals=True
+        )
+        assert memory is not None
+        return replace(result, converged=False, failed=True) if memory.missed else result
 
     return track(problem, solve_frame, progress, MotionLimits.of(robot, settings))
 
@@ -480,6 +503,8 @@ def solve(
 def jv_solver(
     settings: JVSettings = JVSettings(),
     progress: Callable[[int], None] | None = None,
+    limits: Sequence[mink.Limit] = (),
 ) -> ConfiguredSolver:
-    """The JV solver with the given settings, for :func:`hlik.retarget.retarget`."""
-    return ConfiguredSolver("jv", solve, settings, progress)
+    """The JV solver with the given settings (and a caller's ``mink.Limit``\\ s), for
+    :func:`hlik.retarget.retarget`."""
+    return ConfiguredSolver("jv", partial(solve, limits=limits) if limits else solve, settings, progress)

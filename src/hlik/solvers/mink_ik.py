@@ -27,6 +27,7 @@ from hlik.solvers.frames import (
     JointBox,
     constrained_steps,
     iterate,
+    limit_rows,
     solve_step,
     step_budget,
     track,
@@ -128,9 +129,9 @@ class MinkSolver:
             def step(x: np.ndarray) -> np.ndarray | None:
                 config.update(x)
                 objective = mink.build_ik(config, tasks, sample.dt, self.damping, limits=[])
-                a_hard, b_hard = _rows(hard, config, sample.dt, n)
-                a_col, b_col = _rows([collision] if collision else [], config, sample.dt, n)
-                a_band, b_band = _rows(band, config, sample.dt, n) if band else (None, None)
+                a_hard, b_hard = limit_rows(hard, config, sample.dt, n)
+                a_col, b_col = limit_rows([collision] if collision else [], config, sample.dt, n)
+                a_band, b_band = limit_rows(band, config, sample.dt, n) if band else (None, None)
                 if b_band is not None and not len(b_band):  # no hand target task in this stack
                     a_band, b_band = None, None
                 tries = constrained_steps(box, x, self.max_step, a_col, b_col, a_band, b_band, a_hard, b_hard)
@@ -157,17 +158,3 @@ class MinkSolver:
                 task.set_target(mink.SE3.from_rotation_and_translation(rot, sample.target_pos[0, i]))
             elif isinstance(task, CriterionTask):
                 task.set_sample(sample)
-
-
-def _rows(
-    limits: Sequence[mink.Limit], config: mink.Configuration, dt: float, n: int
-) -> tuple[np.ndarray, np.ndarray]:
-    """The inequality rows ``G dq <= h`` of ``limits`` at ``config``, stacked: (k, n), (k,)."""
-    g: list[np.ndarray] = [np.zeros((0, n))]
-    h: list[np.ndarray] = [np.zeros(0)]
-    for limit in limits:
-        c = limit.compute_qp_inequalities(config, dt)
-        if c.G is not None and c.h is not None:  # mink's Constraint.inactive
-            g.append(c.G)
-            h.append(c.h)
-    return np.vstack(g), np.concatenate(h)

@@ -3,10 +3,12 @@ frame loop, and which NLopt exceptions fail a frame rather than the run."""
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import replace
+from functools import partial
 from types import MappingProxyType
 
+import mink
 import nlopt
 import numpy as np
 
@@ -15,7 +17,7 @@ from hlik.problem.problem import Problem
 from hlik.robot.collision import collision_pairs
 from hlik.robot.model import Robot
 from hlik.solvers.base import ConfiguredSolver, SolverResult
-from hlik.solvers.frames import FrameResult, JointBox, track
+from hlik.solvers.frames import FrameResult, JointBox, box_with_limits, track
 from hlik.solvers.limits import MotionLimits
 from hlik.solvers.slsqp.constraints import (
     BAND_TOLERANCE,
@@ -202,8 +204,11 @@ def solve(
     problem: Problem,
     settings: SLSQPSettings = SLSQPSettings(),
     progress: Callable[[int], None] | None = None,
+    limits: Sequence[mink.Limit] = (),
 ) -> SolverResult:
-    """Retarget frame by frame.
+    """Retarget frame by frame; ``limits``: a caller's ``mink.Limit``\\ s, their rows taken at
+    each frame's start and kept as linear constraints with the box's
+    (:func:`~hlik.solvers.frames.box_with_limits`; a frame that cannot keep them fails).
 
     Diagnostics: ``iterations`` counts NLopt's objective evaluations (``fd``: each costs n + 1 FK
     passes), a frame has converged when NLopt stopped by its tolerance (not ``MAXEVAL_REACHED``) and
@@ -219,8 +224,11 @@ def solve(
     collision = CollisionConstraint(robot, pairs, settings) if pairs is not None and len(pairs) else None
     band, first_band = (BandConstraint(robot, o.losses, settings) for o in (objective, first))
     status = np.zeros(problem.n_frames, dtype=int)
+    config = mink.Configuration(robot.model) if limits else None
 
     def solve_frame_k(k: int, frame: Sample, q: np.ndarray, box: JointBox) -> FrameResult:
+        if config is not None:
+            box = box_with_limits(box, limits, config, box.clip(q), frame.dt)
         obj, max_eval, hands = (
             (first, settings.first_eval, first_band) if k == 0 else (objective, settings.max_eval, band)
         )
@@ -239,6 +247,8 @@ def solve(
 def slsqp_solver(
     settings: SLSQPSettings = SLSQPSettings(),
     progress: Callable[[int], None] | None = None,
+    limits: Sequence[mink.Limit] = (),
 ) -> ConfiguredSolver:
-    """The SLSQP solver (the paper's OPT) with the given settings, for :func:`hlik.retarget.retarget`."""
-    return ConfiguredSolver("slsqp", solve, settings, progress)
+    """The SLSQP solver (the paper's OPT) with the given settings (and a caller's
+    ``mink.Limit``\\ s), for :func:`hlik.retarget.retarget`."""
+    return ConfiguredSolver("slsqp", partial(solve, limits=limits) if limits else solve, settings, progress)
