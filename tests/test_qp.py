@@ -330,17 +330,11 @@ def test_a_users_mink_limit_is_never_dropped_by_the_fallbacks():
     assert not free.diagnostics.failed.any()
 
 
-@pytest.mark.parametrize("bound", [1.5, 1.2])
-def test_a_users_bound_with_a_braking_margin_holds_where_the_joint_arrives_at_speed(bound):
-    """A caller's upper bound on ARMAR-6's left elbow (which rises to 1.94 rad on this stretch of
-    the demo), kept ``v^2 / (2 a)`` inside it as the README says: the joint arrives at the row faster
-    than its acceleration limit can stop it there, so the row gives way as little as the box allows
-    (frames reported failed) and the bound itself holds in every frame. A frame with no step had
-    carried the joint on at its speed, 1.9 rad past (found by a new user). At 1.2 the first frame
-    starts above the row (the mapped pose) and is brought inside."""
+def _elbow_below(r, bound):
+    """A user's ``mink.Limit`` keeping ARMAR-6's left elbow (``ArmL6_Elb2``) at most ``bound`` less
+    the braking margin v^2 / (2 a), as the README says; the limit, the joint's index and the margin."""
     from mink.limits import Constraint, Limit
 
-    r = load_robot("armar6")
     j = r.joint_names.index("ArmL6_Elb2")
     margin = r.velocity_limit[j] ** 2 / (2.0 * r.acceleration_limit[j])
 
@@ -350,10 +344,24 @@ def test_a_users_bound_with_a_braking_margin_holds_where_the_joint_arrives_at_sp
             g[0, j] = 1.0
             return Constraint(G=g, h=np.array([bound - margin - configuration.q[j]]))
 
+    return Below(), j, margin
+
+
+@pytest.mark.parametrize("bound", [1.5, 1.2])
+def test_a_users_bound_with_a_braking_margin_holds_where_the_joint_arrives_at_speed(bound):
+    """A caller's upper bound on ARMAR-6's left elbow (which rises to 1.94 rad on this stretch of
+    the demo), kept ``v^2 / (2 a)`` inside it as the README says: the joint arrives at the row faster
+    than its acceleration limit can stop it there, so the row gives way as little as the box allows
+    (frames reported failed) and the bound itself holds in every frame. A frame with no step had
+    carried the joint on at its speed, 1.9 rad past (found by a new user). At 1.2 the first frame
+    starts above the row (the mapped pose) and is brought inside."""
+    r = load_robot("armar6")
+    below, j, margin = _elbow_below(r, bound)
+
     motion = demo_motion().crop(0.0, 2.0)
     settings = QPSettings(criteria=("SYN", "HJA_r"))
     free = retarget(motion, r, qp.build_solver(r, settings, learn(r)))
-    traj = retarget(motion, r, qp.build_solver(r, settings, learn(r), limits=[Below()]))
+    traj = retarget(motion, r, qp.build_solver(r, settings, learn(r), limits=[below]))
     assert free.q[:, j].max() > bound + 0.3  # the bound binds
     assert np.all(traj.q[:, j] <= bound), traj.q[:, j].max()
     over = traj.q[:, j] > bound - margin + 1e-9
@@ -384,27 +392,18 @@ def test_jv_and_slsqp_keep_a_users_mink_limit_as_the_qp_does(name):
     bound on ARMAR-6's left elbow from the test above (1.2 rad, the row v^2/(2a) inside it, below
     the first frame's mapped pose) binds without it and holds with it; a frame past the row is
     reported failed."""
-    from mink.limits import Constraint, Limit
-
     from hlik.solvers import jv, slsqp
 
     r = load_robot("armar6")
-    j = r.joint_names.index("ArmL6_Elb2")
     bound = 1.2
-    margin = r.velocity_limit[j] ** 2 / (2.0 * r.acceleration_limit[j])
-
-    class Below(Limit):
-        def compute_qp_inequalities(self, configuration, dt):
-            g = np.zeros((1, r.dof))
-            g[0, j] = 1.0
-            return Constraint(G=g, h=np.array([bound - margin - configuration.q[j]]))
+    below, j, margin = _elbow_below(r, bound)
 
     module, settings = {"jv": (jv, jv.JVSettings), "slsqp": (slsqp, slsqp.SLSQPSettings)}[name]
     factory = getattr(module, f"{name}_solver")
     motion = demo_motion().crop(0.0, 2.0)
     s = settings(criteria=("SYN", "HJA_r"))
     free = retarget(motion, r, factory(s), learned=learn(r))
-    traj = retarget(motion, r, factory(s, limits=[Below()]), learned=learn(r))
+    traj = retarget(motion, r, factory(s, limits=[below]), learned=learn(r))
     assert free.q[:, j].max() > bound  # measured: JV 1.24, SLSQP 1.64 rad
     assert np.all(traj.q[:, j] <= bound), traj.q[:, j].max()
     over = traj.q[:, j] > bound - margin + 1e-6

@@ -27,7 +27,7 @@ from hlik.solvers.slsqp.constraints import (
     BoxConstraint,
     CollisionConstraint,
 )
-from hlik.solvers.slsqp.objective import Objective, build_losses
+from hlik.solvers.slsqp.objective import Chart, Objective, build_losses
 from hlik.solvers.slsqp.settings import SLSQPSettings
 
 # NLopt exceptions that end one frame, not the run, and the result code each stands for. NLopt's
@@ -153,14 +153,22 @@ def _solve_once(
             raise
         q, status = None, code
     if q is None:
-        # the point that misses the body's constraints least, the lowest objective among equals, as
-        # the QP's soft rows: the lowest objective alone had put 2-Panda's arm 4 cm into its chest (a
-        # target there, on a machine whose rounding stopped SLSQP ROUNDOFF_LIMITED 16 frames running)
-        best = seen.best()
-        q = q0 if best is None else (best[0] if chart is None else chart.q(best[0]))
-        if status == nlopt.ROUNDOFF_LIMITED and (best is None or best[1] > ROUNDOFF_MISS):
-            status = nlopt.FAILURE  # usable only where the point kept (nearly) keeps the constraints
+        q, status = _fallback(seen, chart, q0, status)
     return np.asarray(q, dtype=float), int(status)
+
+
+def _fallback(seen: Evaluated, chart: Chart | None, q0: np.ndarray, status: int) -> tuple[np.ndarray, int]:
+    """Where NLopt stopped without a result: the point it evaluated that misses the body's
+    constraints least, the lowest objective among equals (``q0`` if none), as the QP's soft rows
+    give way; the lowest objective alone had put 2-Panda's arm 4 cm into its chest (a target there,
+    on a machine whose rounding stopped SLSQP ROUNDOFF_LIMITED 16 frames running). A
+    roundoff-limited stop stays one (usable) only where that point misses them by at most
+    :data:`ROUNDOFF_MISS`; else the frame failed."""
+    best = seen.best()
+    q = q0 if best is None else (best[0] if chart is None else chart.q(best[0]))
+    if status == nlopt.ROUNDOFF_LIMITED and (best is None or best[1] > ROUNDOFF_MISS):
+        status = nlopt.FAILURE
+    return q, status
 
 
 class Evaluated:
