@@ -3,14 +3,16 @@
 
 - ``jm``: the paper's joint mapping (Table I), clipped to the limits (:mod:`~hlik.solvers.jm`).
 - ``jv``: the paper's Jacobian velocity controller, criteria in the null space (:mod:`~hlik.solvers.jv`).
-- ``qp``: a stack of convex QPs per frame, criteria as least-squares terms (:mod:`~hlik.solvers.qp`).
+- ``qp``: a stack of convex QPs per frame, criteria as least-squares terms, solved by
+  :class:`~hlik.solvers.mink_ik.MinkSolver` (:mod:`~hlik.solvers.qp`).
 - ``slsqp``: the paper's OPT, RelaxedIK groove losses with NLopt's SLSQP (:mod:`~hlik.solvers.slsqp`).
 - ``mink``: the QP's stack solved by mink, with a stack file's own mink tasks and limits
   (:mod:`~hlik.solvers.mink_stack`).
 
 Beside them: :mod:`~hlik.solvers.mink_tasks` (criteria as mink tasks and limits),
 :mod:`~hlik.solvers.mink_ik` (a solver from any mink stack), :mod:`~hlik.solvers.stack_file`
-(``tasks/*.toml``), :mod:`~hlik.solvers.frames` (the frame loop they share).
+(``tasks/*.toml``), :mod:`~hlik.solvers.frames` (the frame loop they share),
+:mod:`~hlik.solvers.gradients` (a term's cost and gradient of one sample, for JV and SLSQP).
 """
 
 from __future__ import annotations
