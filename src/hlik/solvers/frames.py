@@ -196,8 +196,8 @@ def constrained_steps(
     limit, for a miss of the margin by 0.1 mm; and a collision row relaxed to "no worse than the
     step's start" let the arm coast into the body at its speed.
 
-    The hands' band ``a_band``, ``b_band`` (k, n), (k,) is the first try's, as hard rows; where it
-    is out of a step's reach, the QP moves its bound out by as little
+    The hands' band ``a_band``, ``b_band`` (k, n), (k,) (none where k = 0) is the first try's, as
+    hard rows; where it is out of a step's reach, the QP moves its bound out by as little
     as the body's rows allow (:func:`nearest_band`). Soft rows at a penalty high enough to act as
     a priority had left daqp's problem so badly scaled that it called every step infeasible, and
     a robot started 0.6 m from its targets never moved."""
@@ -207,7 +207,7 @@ def constrained_steps(
         a_hard, b_hard = np.zeros((0, len(q))), np.zeros(0)
     a, b = np.vstack([a_box, a_hard, a_col]), np.concatenate([b_box, b_hard, b_col])
     tries = []
-    if a_band is not None and b_band is not None:
+    if a_band is not None and b_band is not None and len(b_band):
         tries.append(StepConstraints(lower, upper, np.vstack([a, a_band]), np.concatenate([b, b_band])))
     tries.append(StepConstraints(lower, upper, a, b))
     box_rows, hard = np.zeros(len(b_box)), np.zeros(len(b_hard))

@@ -112,7 +112,7 @@ class MinkSolver:
         cache = StateCache(robot, tuple(sorted({i for t in criteria for i in t.term.sites})))
         for task in criteria:
             task.cache = cache
-        collision = SelfCollisionLimit(robot, *self.collision, cache=cache) if self.self_collision else None
+        collision = SelfCollisionLimit(robot, *self.collision) if self.self_collision else None
         band = [lim for lim in self.limits if isinstance(lim, HandBandLimit)]
         hard = [lim for lim in self.limits if not isinstance(lim, HandBandLimit)]
         n = robot.dof
@@ -131,12 +131,9 @@ class MinkSolver:
                 objective = mink.build_ik(config, tasks, sample.dt, self.damping, limits=[])
                 a_hard, b_hard = limit_rows(hard, config, sample.dt, n)
                 a_col, b_col = limit_rows([collision] if collision else [], config, sample.dt, n)
-                a_band, b_band = limit_rows(band, config, sample.dt, n) if band else (None, None)
-                if b_band is not None and not len(b_band):  # no hand target task in this stack
-                    a_band, b_band = None, None
+                a_band, b_band = limit_rows(band, config, sample.dt, n)
                 tries = constrained_steps(box, x, self.max_step, a_col, b_col, a_band, b_band, a_hard, b_hard)
-                n_band = 0 if b_band is None else len(b_band)
-                dq, taken = solve_step(objective.P, objective.q, tries, self.solver, n_band)
+                dq, taken = solve_step(objective.P, objective.q, tries, self.solver, len(b_band))
                 if taken is not None and taken.misses_limits:
                     nonlocal missed
                     missed = True

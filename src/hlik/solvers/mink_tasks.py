@@ -154,7 +154,8 @@ class SelfCollisionLimit(Limit):
     the robot's collision geoms (:func:`~hlik.solvers.frames.collision_rows`, the QP's and JV's:
     a pair closer than ``collision_detect`` may approach its ``collision_margin`` by at most
     ``collision_gain`` of the gap per step), braking before the margin as the frame's box asks
-    (:meth:`set_box`)."""
+    (:meth:`set_box`). The rows are read from the configuration's own kinematics, which mink
+    keeps current (``Configuration.update``)."""
 
     def __init__(
         self,
@@ -162,10 +163,9 @@ class SelfCollisionLimit(Limit):
         collision_margin: float = 0.01,
         collision_detect: float = 0.10,
         collision_gain: float = 0.5,
-        cache: StateCache | None = None,
     ):
-        self.robot, self.data = robot, mujoco.MjData(robot.model)
-        self.cache = cache or StateCache(robot)  # the configuration's kinematics, shared with the tasks
+        self.robot = robot
+        self.data = mujoco.MjData(robot.model)  # for the braking floors, apart from the configuration
         self.settings = SimpleNamespace(
             collision_margin=collision_margin,
             collision_detect=collision_detect,
@@ -182,10 +182,7 @@ class SelfCollisionLimit(Limit):
     def compute_qp_inequalities(self, configuration: mink.Configuration, dt: float) -> Constraint:
         if self.pairs is None or not len(self.pairs):
             return Constraint()
-        self.data.qpos[:] = configuration.q
-        mujoco.mj_kinematics(self.robot.model, self.data)
-        mujoco.mj_comPos(self.robot.model, self.data)
         rows, bound = collision_rows(
-            self.robot, self.data, self.pairs, self.bounds, self.settings, self.floors
+            self.robot, configuration.data, self.pairs, self.bounds, self.settings, self.floors
         )
         return Constraint(G=rows, h=bound) if len(bound) else Constraint()
