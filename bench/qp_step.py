@@ -28,10 +28,10 @@ import numpy as np
 
 import hlik
 from hlik.criteria.learned import learn
-from hlik.paths import demo_motion_path
 from hlik.problem.problem import build_problem
 from hlik.solvers.limits import STOP_MARGIN
 from hlik.solvers.qp import QPSettings, solve
+from hlik.util.paths import demo_motion_path
 
 REPEATS = 3
 MAX_ITER, TOL = 20, 1e-4

@@ -24,9 +24,9 @@ import numpy as np
 import hlik
 from hlik.criteria import registry
 from hlik.criteria.learned import learn
-from hlik.paths import demo_motion_path
 from hlik.problem.problem import build_problem
 from hlik.solvers.slsqp import SLSQPSettings, solve
+from hlik.util.paths import demo_motion_path
 
 
 def cpu_per_frame(problem, learned, criteria: tuple[str, ...], gradients: str) -> tuple[float, float, int]:

@@ -18,9 +18,9 @@ from pathlib import Path
 
 import ray
 
-from hlik.paths import demo_motion_path
 from hlik.study.approaches import Approach
 from hlik.study.runner import plan, prepare, run_cells
+from hlik.util.paths import demo_motion_path
 
 APPROACHES = tuple(Approach("qp", c) for c in ((), ("SYN",), ("HJA_r",), ("SOA_q",), ("SYN", "HJA_r")))
 APPROACHES += tuple(Approach("jv", c) for c in ((), ("SYN",), ("HJA_r",)))

@@ -11,8 +11,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hlik.paths import robots_dir
 from hlik.robot.model import available_robots
+from hlik.util.paths import robots_dir
 
 DATA = Path(os.environ.get("HLIK_DATA", Path(__file__).resolve().parents[2] / "shared" / "motion_data"))
 
@@ -40,8 +40,8 @@ G1 = robots_dir() / "examples" / "g1.toml"  # the worked example robot (the g1 e
 
 def require_g1() -> None:
     """Skip (fail in CI) unless example-robot-data, which holds the G1's URDF, is installed."""
-    from hlik.errors import RobotError
     from hlik.robot.model_file import resolve_package
+    from hlik.util.errors import RobotError
 
     try:
         resolve_package("package://example-robot-data/", G1, {})

@@ -9,11 +9,11 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from conftest import data_file
-from hlik.errors import MotionFormatError
 from hlik.human import forward_kinematics, load_motion
 from hlik.human.fit import fit_error, fit_mmm
 from hlik.human.keypoints import Keypoints, read_bvh, read_keypoints
 from hlik.human.motion import ARM_JOINTS
+from hlik.util.errors import MotionFormatError
 
 ARM = [j for side in ("left", "right") for j in ARM_JOINTS[side]]
 HUMAN_ASSEMBLY = """data = "{data}"

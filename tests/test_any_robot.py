@@ -13,11 +13,11 @@ from typer.testing import CliRunner
 
 from conftest import G1, require_g1
 from hlik.cli import app
-from hlik.errors import RobotError
-from hlik.fk import site_poses
-from hlik.paths import robots_dir
 from hlik.robot.collision import collision_pairs
 from hlik.robot.model import COLLISION_GROUP, SIDES, SITES, load_robot, self_contacts
+from hlik.util.errors import RobotError
+from hlik.util.paths import robots_dir
+from hlik.util.spatial import site_poses
 
 
 @pytest.fixture(scope="module")
@@ -168,9 +168,9 @@ def test_g1_runs_every_solver_on_a_bvh_and_evaluates(g1, tmp_path, solver):
 
 
 def test_a_study_runs_on_the_g1(g1, tmp_path):
-    from hlik.paths import demo_motion_path as demo
     from hlik.study.approaches import Approach
     from hlik.study.runner import run_study
+    from hlik.util.paths import demo_motion_path as demo
 
     approaches = (Approach("jm", correlation=True), Approach("qp", correlation=True))
     result = run_study([demo()], [str(G1)], approaches, tmp_path, seconds=0.5, workers=1)

@@ -21,13 +21,9 @@ from hypothesis import strategies as st
 from typer.testing import CliRunner
 
 from conftest import kit_takes
-from hlik import atomic
-from hlik.atomic import atomic_paths, pair_lock
 from hlik.cli import app, write_outputs
-from hlik.errors import RobotError, SettingsError, TrajectoryFormatError
 from hlik.human.load import load_motion
 from hlik.human.mmm_format import write_mmm
-from hlik.paths import robots_dir
 from hlik.problem.placement import placement_from_spec
 from hlik.retarget import retarget
 from hlik.robot.model import load_robot
@@ -36,6 +32,10 @@ from hlik.solvers.qp import QPSettings
 from hlik.solvers.slsqp import SLSQPSettings
 from hlik.solvers.stack_file import load_stack
 from hlik.trajectory import load_trajectory
+from hlik.util import atomic
+from hlik.util.atomic import atomic_paths, pair_lock
+from hlik.util.errors import RobotError, SettingsError, TrajectoryFormatError
+from hlik.util.paths import robots_dir
 
 
 @pytest.fixture(scope="module")

@@ -24,12 +24,12 @@ from conftest import data_file, kit_takes
 from hlik.cli import app
 from hlik.cli.run import _run_tag
 from hlik.criteria.functional import position_error
-from hlik.errors import SettingsError
 from hlik.findings import run_warnings
 from hlik.human.load import load_motion
 from hlik.human.mmm_format import write_mmm
-from hlik.paths import corpus_setting, tasks_dir
 from hlik.trajectory import load_trajectory
+from hlik.util.errors import SettingsError
+from hlik.util.paths import corpus_setting, tasks_dir
 
 WARNING = re.compile(
     r"warning: (left|right) hand more than 5 cm off its target in (\d+) of (\d+) frames \(\d+ %\), "

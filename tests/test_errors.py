@@ -114,8 +114,8 @@ def test_cli_errors_are_one_line(args, pattern):
 
 
 def test_the_package_gives_its_submodules_on_first_access():
-    """``import hlik; hlik.paths.demo_motion_path()`` (the README's mink example) works in a fresh
-    interpreter without importing ``hlik.paths`` first; an unknown name is still an AttributeError,
+    """``import hlik; hlik.util.paths.demo_motion_path()`` (the README's mink example) works in a fresh
+    interpreter without importing ``hlik.util.paths`` first; an unknown name is still an AttributeError,
     and importing ``hlik`` alone loads none of the heavy libraries."""
     import subprocess
     import sys
@@ -124,7 +124,7 @@ def test_the_package_gives_its_submodules_on_first_access():
         "import sys\n"
         "import hlik\n"
         "heavy = sorted(m for m in ('mujoco', 'rerun', 'scipy') if m in sys.modules)\n"
-        "print(hlik.paths.demo_motion_path().name, heavy)\n"
+        "print(hlik.util.paths.demo_motion_path().name, heavy)\n"
         "try:\n"
         "    hlik.no_such_thing\n"
         "except AttributeError as err:\n"

@@ -97,3 +97,33 @@ def test_a_step_the_solver_cannot_find_fails_the_frame_where_it_stands():
     result = iterate(lambda q: next(steps), np.zeros(2), box, max_iter=10, tol=1e-6)
     assert result.failed and not result.converged and result.iterations == 2
     np.testing.assert_allclose(result.q, [0.1, 0.0])
+
+
+def test_every_solver_leaves_the_terms_of_motion_out_of_the_first_frame():
+    """One first-frame rule (``frames.first_frame_terms``): the QP's and SLSQP's first stacks hold
+    every term of their later frames but those of motion (MIS, MJE, minimum velocity, acceleration,
+    jerk), and track the TCP poses in the relative scenario."""
+    from dataclasses import replace
+
+    from hlik.criteria.learned import learn
+    from hlik.robot.model import load_robot
+    from hlik.solvers import qp, slsqp
+
+    robot = load_robot("armar6")
+    learned = learn(robot)
+    criteria = ("MJE", "MIS", "HJA_r", "SYN")
+    stacks = {
+        "qp": lambda s, first: [t for t, _ in qp.build_terms(robot, s, learned, first=first)],
+        "slsqp": lambda s, first: [loss.term for loss in slsqp.build_losses(robot, s, learned, first)],
+    }
+    for name, base in (
+        ("qp", qp.QPSettings(criteria=criteria)),
+        ("slsqp", slsqp.SLSQPSettings(criteria=criteria)),
+    ):
+        for scenario in ("pose", "relative"):
+            s = replace(base, scenario=scenario)
+            later, first = stacks[name](s, False), stacks[name](s, True)
+            assert any(t.motion for t in later) and not any(t.motion for t in first), name
+            assert {"MJE", "MIS"} <= {t.name for t in later}
+            assert {"HJA_r", "SYN"} <= {t.name for t in first}
+            assert "fPOS" in {t.name for t in first} and "fPOS_off" not in {t.name for t in first}

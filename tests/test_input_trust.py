@@ -11,7 +11,6 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from conftest import data_file
-from hlik.cache import read_entry, write_entry
 from hlik.criteria import learned as learned_module
 from hlik.criteria import registry
 from hlik.criteria.learned import learn
@@ -27,6 +26,7 @@ from hlik.robot.reachability import reachability_map
 from hlik.robot.state import robot_state
 from hlik.solvers.frames import sample_at
 from hlik.solvers.gradients import gradient
+from hlik.util.cache import read_entry, write_entry
 
 # A take whose ARMAR-6 elbow (an unlimited joint) passes pi between 4 and 5 s.
 TAKE = "kit_bimanual/Close_files_motions_3072_Close1_aj_180_30h_08.xml"

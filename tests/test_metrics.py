@@ -14,11 +14,11 @@ from hlik.cli import app
 from hlik.criteria import registry, unified
 from hlik.criteria.joints import human_limits, mapped_pose
 from hlik.criteria.learned import learn
-from hlik.errors import HlikError
 from hlik.human.demo import demo_motion
 from hlik.metrics import evaluate
-from hlik.paths import cache_dir
 from hlik.robot.model import mapped_configuration
+from hlik.util.errors import HlikError
+from hlik.util.paths import cache_dir
 
 TABLE_III = {  # name: (x0, inverse weight), paper Table III
     "EEA": (0.3, 20), "SOA_x": (0.2, 20), "SOA_q": (0.34, 20), "HJL": (0.48, 15), "SYN": (0.12, 15),

@@ -11,7 +11,7 @@ from hlik.human.demo import demo_motion
 from hlik.human.kinematics import forward_kinematics
 from hlik.human.mmm_format import write_mmm
 from hlik.human.motion import ARM_JOINTS
-from hlik.paths import demo_motion_path
+from hlik.util.paths import demo_motion_path
 
 MIRROR = np.diag([-1.0, 1.0, 1.0])
 

@@ -18,10 +18,10 @@ from scipy.spatial.transform import Rotation
 
 from conftest import DATA, data_file, kit_takes
 from hlik import load_motion
-from hlik.errors import MotionFormatError, SettingsError
 from hlik.human.demo import demo_motion
 from hlik.human.mmm_format import read_mmm, write_mmm
 from hlik.human.motion import ARM_RANGES, HumanMotion, ObjectMotion
+from hlik.util.errors import MotionFormatError, SettingsError
 
 STIR = "kit_bimanual/Stir_files_motions_2941_Stir1_bc_s_right_03.xml"  # 79 frames at 10 Hz, 7.8 s
 SUBJECT = "subject 'true_1723'"

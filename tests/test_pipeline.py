@@ -13,7 +13,6 @@ import hlik
 import hlik.pipeline
 from hlik.cli import app
 from hlik.criteria.learned import learn
-from hlik.errors import HlikError
 from hlik.human.load import load_motion
 from hlik.metrics import evaluate
 from hlik.pipeline import RunSpec, run
@@ -25,6 +24,7 @@ from hlik.solvers import get_solver
 from hlik.solvers.stack_file import load_stack
 from hlik.study.approaches import Approach
 from hlik.study.dataset import Cell, run_cell
+from hlik.util.errors import HlikError
 
 
 @pytest.mark.parametrize(
@@ -147,9 +147,9 @@ def test_the_problem_learns_once_and_only_for_criteria_that_learn(monkeypatch):
     """build_problem learns where a criterion is built from learned pieces, not for plain tracking
     or JM; a problem without them refuses such a criterion by name."""
     import hlik.problem.problem
-    from hlik.errors import SettingsError
     from hlik.human.demo import demo_motion
     from hlik.problem.problem import build_problem
+    from hlik.util.errors import SettingsError
 
     robot = load_robot("armar3")
     motion = demo_motion().crop(1.0, 1.1)

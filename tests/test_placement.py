@@ -10,8 +10,6 @@ import pytest
 
 from conftest import ROBOTS, solve_problem
 from hlik.criteria.learned import learn
-from hlik.errors import SettingsError
-from hlik.fk import site_poses
 from hlik.human.demo import demo_motion
 from hlik.human.kinematics import HumanKinematics, forward_kinematics
 from hlik.human.load import load_motion
@@ -33,6 +31,8 @@ from hlik.robot.model import SIDES, joint_mapping, load_robot
 from hlik.robot.reachability import reachability_map
 from hlik.robot.state import robot_state
 from hlik.solvers import qp
+from hlik.util.errors import SettingsError
+from hlik.util.spatial import site_poses
 
 
 def test_reach_placement_moves_and_turns_with_the_motion(takes):

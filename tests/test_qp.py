@@ -279,7 +279,7 @@ def test_the_qp_is_its_stack_of_least_squares_terms_on_mink(name):
     config = mink.Configuration(r.model, q)
     state = robot_state(r, q, jacobians=True)
     for first, tasks in ((True, solver.first_tasks), (False, solver.tasks)):
-        terms = qp.build_terms(r, settings, learned, "pose" if first else None, first=first)
+        terms = qp.build_terms(r, settings, learned, first=first)
         assert [type(t.term) for t in tasks] == [type(t) for t, _ in terms]
         for task in tasks:
             task.set_sample(frame)

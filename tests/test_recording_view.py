@@ -17,7 +17,6 @@ from rerun.chunk import RrdReader
 
 from hlik.criteria import registry
 from hlik.criteria.learned import learn
-from hlik.fk import body_poses
 from hlik.human.kinematics import human_model, qpos_trajectory
 from hlik.human.load import load_motion
 from hlik.metrics import evaluate
@@ -35,6 +34,7 @@ from hlik.recording import (
 from hlik.recording.scene import _display_placement
 from hlik.retarget import retarget
 from hlik.robot.model import load_robot
+from hlik.util.spatial import body_poses
 
 
 @pytest.fixture(scope="module")

@@ -210,8 +210,8 @@ def test_velocity_limits_are_present_positive_and_sourced(name):
     ],
 )
 def test_bad_velocity_limits_are_refused(tmp_path, edit, message):
-    from hlik.errors import RobotError
-    from hlik.paths import robots_dir
+    from hlik.util.errors import RobotError
+    from hlik.util.paths import robots_dir
 
     text = (robots_dir() / "armar6.toml").read_text()
     text = text.replace('model = "mjcf/armar6.xml"', f'model = "{robots_dir() / "mjcf/armar6.xml"}"')

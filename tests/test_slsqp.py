@@ -15,7 +15,6 @@ from hlik.criteria.functional import relative_errors
 from hlik.criteria.learned import learn
 from hlik.criteria.smoothness import VELOCITY, Smoothness
 from hlik.human.kinematics import forward_kinematics
-from hlik.paths import demo_motion_path
 from hlik.problem.placement import shoulder_placement
 from hlik.problem.problem import build_problem
 from hlik.problem.reference import human_reference
@@ -42,6 +41,7 @@ from hlik.solvers.slsqp import (
     solve,
     solve_frame,
 )
+from hlik.util.paths import demo_motion_path
 
 
 def _problem(robot: str, start: float = 2.0, stop: float = 2.5):

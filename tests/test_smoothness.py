@@ -57,7 +57,7 @@ def test_motion_criteria_stay_out_of_the_first_frame():
     settings = QPSettings(criteria=("MJE", "MIS", "HJA_r"))
     names = lambda terms: [t.name for t, _ in terms]  # noqa: E731
     assert {"MJE", "MIS", "HJA_r"} <= set(names(build_terms(robot, settings, learn(robot))))
-    first = names(build_terms(robot, settings, learn(robot), "pose", first=True))
+    first = names(build_terms(robot, settings, learn(robot), first=True))
     assert "HJA_r" in first and "MJE" not in first and "MIS" not in first
 
 

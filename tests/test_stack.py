@@ -8,10 +8,10 @@ import pytest
 from typer.testing import CliRunner
 
 from hlik.cli import app
-from hlik.errors import HlikError, SettingsError
-from hlik.paths import tasks_dir
 from hlik.solvers.qp import QPSettings
 from hlik.solvers.stack_file import bundled_stacks, load_stack
+from hlik.util.errors import HlikError, SettingsError
+from hlik.util.paths import tasks_dir
 
 
 def test_bundled_stacks_load_for_every_solver():

@@ -14,12 +14,12 @@ from typer.testing import CliRunner
 from hlik.cli import app
 from hlik.criteria import registry
 from hlik.criteria.unified import Metric, load_metric
-from hlik.errors import HlikError
-from hlik.paths import demo_motion_path
 from hlik.robot.model import SIDES
 from hlik.study.analysis import hierarchy_weights, spearman, ward
 from hlik.study.approaches import Approach, load_approaches
 from hlik.study.runner import plan, run_cells, run_study
+from hlik.util.errors import HlikError
+from hlik.util.paths import demo_motion_path
 
 NAMES = registry.human_likeness()
 

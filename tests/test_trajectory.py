@@ -11,12 +11,12 @@ from scipy.spatial.transform import Rotation
 from conftest import ROBOTS
 from hlik import load_motion, load_robot
 from hlik.criteria.functional import position_error, rotation_angle
-from hlik.errors import TrajectoryFormatError
 from hlik.human.demo import demo_motion
 from hlik.human.kinematics import forward_kinematics
 from hlik.retarget import retarget
 from hlik.robot.model import tcp_poses
 from hlik.trajectory import load_trajectory
+from hlik.util.errors import TrajectoryFormatError
 
 
 @pytest.fixture(scope="module")

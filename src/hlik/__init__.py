@@ -10,11 +10,10 @@ import sys
 from types import ModuleType
 from typing import TYPE_CHECKING, Any
 
-from hlik.lazy import lazy_getattr
-from hlik.version import __version__ as __version__
+from hlik.util.lazy import lazy_getattr
+from hlik.util.version import __version__ as __version__
 
 if TYPE_CHECKING:
-    from hlik.errors import HlikError, MotionFormatError, RobotError, TrajectoryFormatError
     from hlik.human.kinematics import HumanKinematics
     from hlik.human.load import load_motion
     from hlik.human.motion import HumanMotion, ObjectMotion
@@ -23,13 +22,15 @@ if TYPE_CHECKING:
     from hlik.retarget import retarget
     from hlik.robot.model import Robot, available_robots, load_robot
     from hlik.trajectory import Trajectory, load_trajectory
+    from hlik.util.errors import HlikError, MotionFormatError, RobotError, TrajectoryFormatError
+    from hlik.util.paths import demo_motion_path
 
 # Imported on first use (PEP 562): `import hlik.cli` must not pay for rerun, mink, scipy, MuJoCo.
 _WHERE = {
-    "HlikError": "hlik.errors",
-    "MotionFormatError": "hlik.errors",
-    "RobotError": "hlik.errors",
-    "TrajectoryFormatError": "hlik.errors",
+    "HlikError": "hlik.util.errors",
+    "MotionFormatError": "hlik.util.errors",
+    "RobotError": "hlik.util.errors",
+    "TrajectoryFormatError": "hlik.util.errors",
     "HumanKinematics": "hlik.human.kinematics",
     "load_motion": "hlik.human.load",
     "HumanMotion": "hlik.human.motion",
@@ -44,6 +45,7 @@ _WHERE = {
     "load_robot": "hlik.robot.model",
     "Trajectory": "hlik.trajectory",
     "load_trajectory": "hlik.trajectory",
+    "demo_motion_path": "hlik.util.paths",
 }
 
 __all__ = [
@@ -59,6 +61,7 @@ __all__ = [
     "Trajectory",
     "TrajectoryFormatError",
     "available_robots",
+    "demo_motion_path",
     "load_motion",
     "load_robot",
     "load_trajectory",

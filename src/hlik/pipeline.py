@@ -20,12 +20,10 @@ from types import MappingProxyType
 
 from hlik.criteria.learned import Learned, learn
 from hlik.criteria.unified import check_scenario, load_metric
-from hlik.errors import HlikError
 from hlik.findings import run_warnings
 from hlik.human.load import load_motion
 from hlik.human.motion import RATE_RANGE, HumanMotion
 from hlik.metrics import Evaluation, evaluate
-from hlik.paths import demo_motion_path
 from hlik.placement_search import Candidate, optimize_placement
 from hlik.problem.placement import Placement, placement_from_spec, placement_notes
 from hlik.problem.scale import scale_subject
@@ -35,6 +33,8 @@ from hlik.robot.reachability import reachability_map
 from hlik.solvers import SOLVER_NAMES, SPECS, get_solver
 from hlik.solvers.stack_file import Stack, load_stack
 from hlik.trajectory import Trajectory
+from hlik.util.errors import HlikError
+from hlik.util.paths import demo_motion_path
 
 # (stage, done, total): what the run is doing, and how far (None, None: no count)
 Progress = Callable[[str, int | None, int | None], None]

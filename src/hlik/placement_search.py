@@ -26,8 +26,8 @@ from hlik.problem.placement import (
 )
 from hlik.retarget import retarget
 from hlik.robot.model import Robot
-from hlik.rotations import yaw_rotation
 from hlik.solvers.base import Solver
+from hlik.util.spatial import yaw_rotation
 
 
 @dataclass(frozen=True)

@@ -31,12 +31,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from hlik.criteria.angles import joint_difference
-from hlik.fk import site_poses
 from hlik.human.kinematics import arm_length as arm_lengths
 from hlik.human.kinematics import forward_kinematics, shoulder_axes
 from hlik.human.swivel import swivel_angle
 from hlik.robot.model import Robot
 from hlik.trajectory import Trajectory
+from hlik.util.spatial import site_poses
 
 BEHIND = 0.05  # m: an elbow this far behind the frontal plane is "behind the back"
 UP = np.array([0.0, 0.0, 1.0])

@@ -8,7 +8,6 @@ from dataclasses import replace
 import numpy as np
 
 from hlik.criteria.learned import Learned
-from hlik.errors import HlikError
 from hlik.human.fit import keypoint_markers
 from hlik.human.motion import HumanMotion
 from hlik.problem.placement import Placement
@@ -17,6 +16,7 @@ from hlik.robot.model import Robot, tcp_poses
 from hlik.solvers import SOLVERS, Solver, get_solver
 from hlik.solvers.base import Diagnostics, SolverResult
 from hlik.trajectory import Trajectory
+from hlik.util.errors import HlikError
 
 
 def retarget(

@@ -16,14 +16,14 @@ from pathlib import Path
 
 import numpy as np
 
-from hlik.atomic import atomic_path
-from hlik.errors import TrajectoryFormatError
 from hlik.human.motion import HumanMotion, ObjectMotion
 from hlik.problem.placement import Placement
 from hlik.problem.reference import HumanReference
 from hlik.problem.targets import HandTargets
 from hlik.robot.model import Robot
 from hlik.solvers.base import Diagnostics
+from hlik.util.atomic import atomic_path
+from hlik.util.errors import TrajectoryFormatError
 
 FORMAT = "hlik.trajectory/2"
 
@@ -85,7 +85,7 @@ def load_trajectory(path: str | Path) -> Trajectory:
     finite values, strictly increasing times, rotation matrices.
 
     Raises:
-        hlik.errors.TrajectoryFormatError: missing or unreadable file, not an hlik trajectory, or
+        hlik.util.errors.TrajectoryFormatError: missing or unreadable file, not an hlik trajectory, or
             inconsistent (naming the array and the problem).
     """
     path = Path(path)
@@ -111,7 +111,7 @@ def check_robot(path: str | Path, trajectory: Trajectory, robot: Robot) -> None:
     """Refuse a trajectory whose joints are not ``robot``'s (one robot's joints labelled as another).
 
     Raises:
-        hlik.errors.TrajectoryFormatError: naming the file, the robot and the first joint that differs.
+        hlik.util.errors.TrajectoryFormatError: naming the file, the robot and the first joint that differs.
     """
     if trajectory.joint_names == robot.joint_names:
         _check_limits(path, trajectory, robot)

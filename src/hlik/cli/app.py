@@ -14,8 +14,8 @@ from rich.console import Console
 from rich.text import Text
 from typer.core import TyperGroup
 
-from hlik.atomic import raising_on_sigterm
-from hlik.errors import HlikError
+from hlik.util.atomic import raising_on_sigterm
+from hlik.util.errors import HlikError
 
 FLAG = ""  # metavar of an on/off option: typer would show it as `--json <bool>`, taking a value
 

@@ -18,8 +18,8 @@ from hlik.cli.app import (
     one_line,
     warn,
 )
-from hlik.errors import HlikError
-from hlik.paths import corpus_setting
+from hlik.util.errors import HlikError
+from hlik.util.paths import corpus_setting
 
 
 def evaluate(
@@ -36,10 +36,10 @@ def evaluate(
 
     from hlik.criteria.learned import learn
     from hlik.criteria.unified import check_scenario, load_metric, midpoints
-    from hlik.errors import RobotError
     from hlik.metrics import evaluate as evaluate_trajectory
     from hlik.robot.model import load_robot
     from hlik.trajectory import check_robot, load_trajectory
+    from hlik.util.errors import RobotError
 
     with one_line():
         check_scenario(scenario)

@@ -14,7 +14,7 @@ from hlik.cli.app import (
     one_line,
     warn,
 )
-from hlik.paths import corpus_setting
+from hlik.util.paths import corpus_setting
 
 
 def learn(
@@ -25,8 +25,8 @@ def learn(
     import numpy as np
 
     from hlik.criteria.learned import learn as learn_robot
-    from hlik.paths import cache_dir
     from hlik.robot.model import available_robots, load_robot
+    from hlik.util.paths import cache_dir
 
     paper = {"armar3": 7.25, "armar6": 8.76, "dual_panda": 4.7}
     table = Table("robot", "corpus", "PCA var. (5)", "1st-order var. (5)", "Psi rms", "lambda_R", "paper")

@@ -9,7 +9,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from hlik.errors import HlikError
+from hlik.util.errors import HlikError
 
 if TYPE_CHECKING:  # imported where used: `hlik --help` stays quick
     import numpy as np
@@ -67,14 +67,14 @@ def write_outputs(
     info: Mapping[str, str] | None = None,
 ) -> None:
     """Write the trajectory ``npz`` and its recording ``rrd`` together: both appear, or neither
-    (:func:`hlik.atomic.atomic_paths`; a failed, interrupted or terminated write leaves no file).
+    (:func:`hlik.util.atomic.atomic_paths`; a failed, interrupted or terminated write leaves no file).
     ``evaluation`` and ``info`` (setting -> text) go to the recording's result panel.
 
     Raises:
         HlikError: naming the file that could not be written (never the temporary).
     """
-    from hlik.atomic import atomic_paths
     from hlik.recording import write_recording
+    from hlik.util.atomic import atomic_paths
 
     with _writing(npz, rrd):
         rrd.parent.mkdir(parents=True, exist_ok=True)

@@ -9,7 +9,7 @@ import typer
 from rich.table import Table
 from rich.text import Text
 
-from hlik.paths import demo_motion_path
+from hlik.util.paths import demo_motion_path
 
 if TYPE_CHECKING:  # imported where used: `hlik --help` stays quick
     from hlik.robot.calibrate import Calibration

@@ -10,8 +10,8 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from hlik.errors import HlikError
-from hlik.paths import corpus_setting
+from hlik.util.errors import HlikError
+from hlik.util.paths import corpus_setting
 
 if TYPE_CHECKING:  # imported where used: `hlik --help` stays quick
     from hlik.pipeline import RunResult, RunSpec
@@ -196,14 +196,14 @@ def _settings(result: RunResult, layout: str) -> dict[str, str]:
 
 def _inputs(spec: RunSpec) -> list:
     """The files a run reads, which its outputs must not replace."""
-    from hlik.paths import tasks_dir
+    from hlik.util.paths import tasks_dir
 
     return [spec.motion_path, spec.metric, spec.robot, spec.stack, tasks_dir() / f"{spec.stack}.toml"]
 
 
 def _tag(spec: RunSpec, robot: Robot, layout: str) -> str:
     """:func:`_run_tag` of a run: the spec's choices that differ from the defaults."""
-    from hlik.paths import tasks_dir
+    from hlik.util.paths import tasks_dir
 
     stack = spec.task_stack()
     bundled = not Path(spec.stack).exists() and (tasks_dir() / f"{spec.stack}.toml").is_file()

@@ -18,8 +18,8 @@ from hlik.cli.app import (
     one_line,
     progress_bar,
 )
-from hlik.errors import HlikError
-from hlik.paths import corpus_setting, demo_motion_path
+from hlik.util.errors import HlikError
+from hlik.util.paths import corpus_setting, demo_motion_path
 
 if TYPE_CHECKING:
     from hlik.study.runner import StudyResult

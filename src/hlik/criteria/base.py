@@ -91,6 +91,11 @@ class Term:
     part_form: str | None = None
     norm_scale: float = 1.0  # with part_form "norm": each part's cost is norm_scale |e_p|
     gradient_cap: float | None = None  # each dh/dq scaled down to this norm (:mod:`hlik.solvers.gradients`)
+    # True where the residual measures the motion since the previous frames (MIS, MJE, the minimum
+    # velocity, acceleration and jerk). The first frame has none (its history is itself), so the
+    # solvers leave such terms out there (hlik.solvers.frames.first_frame_terms) rather than pull
+    # the first pose toward the pose they start from.
+    motion: ClassVar[bool] = False
 
     def part_rows(self, m: int) -> Sequence[np.ndarray]:
         """The rows of each part of a residual with ``m`` rows: :attr:`parts` equal slices."""
@@ -155,10 +160,6 @@ class Criterion(Term):
     # Set where the solvers minimise another form than h (a smooth stand-in); it says which. They
     # still report h.
     solver_form: ClassVar[str | None] = None
-    # True where h measures the motion since the previous frames (MIS, MJE). The first frame has
-    # none (its history is itself, h = 0 whatever q), so the solvers leave the criterion out there
-    # rather than pull the first pose toward the pose they start from.
-    motion: ClassVar[bool] = False
     # The piece of :class:`~hlik.criteria.learned.Learned` the criterion is built from (``synergies``,
     # ``swivel``, ``scale``), fitted on a human corpus; None: it learns nothing.
     learned: ClassVar[str | None] = None

@@ -12,8 +12,8 @@ from __future__ import annotations
 import numpy as np
 
 from hlik.criteria.base import Criterion, Sample, block_norm_cost, block_norm_gradient
-from hlik.errors import SettingsError
-from hlik.rotations import rotation_angle, rotation_vector, skew
+from hlik.util.errors import SettingsError
+from hlik.util.spatial import rotation_angle, rotation_vector, skew
 
 
 def position_error(pos: np.ndarray, target: np.ndarray) -> np.ndarray:

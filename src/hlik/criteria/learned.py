@@ -19,17 +19,17 @@ from pathlib import Path
 
 import numpy as np
 
-from hlik.cache import UNREADABLE, entry_path, read_entry, write_entry
 from hlik.criteria.eea import SwivelPredictor
 from hlik.criteria.manipulability import scale_factor
 from hlik.criteria.synergy import Synergies, fit_synergies
-from hlik.errors import HlikError, MotionFormatError
 from hlik.human.kinematics import forward_kinematics, shoulder_frame
 from hlik.human.load import load_motion
 from hlik.human.motion import HumanMotion
-from hlik.paths import demo_motion_path, robots_dir
 from hlik.robot.model import SIDES, Robot, joint_mapping
 from hlik.robot.reachability import model_key
+from hlik.util.cache import UNREADABLE, entry_path, read_entry, write_entry
+from hlik.util.errors import HlikError, MotionFormatError
+from hlik.util.paths import demo_motion_path, robots_dir
 
 RATE = 100.0
 TRIM = 1.0  # s dropped at each end of a recording

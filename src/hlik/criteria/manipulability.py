@@ -23,7 +23,7 @@ from hlik.human.manipulability import human_tcp_jacobians, velocity_manipulabili
 from hlik.human.motion import ARM_JOINTS
 from hlik.robot.model import SIDES, SITES, Robot
 from hlik.robot.state import RobotState
-from hlik.rotations import cross
+from hlik.util.spatial import cross
 
 SITE = SITES.index("manipulability")
 

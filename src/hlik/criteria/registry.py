@@ -18,7 +18,7 @@ from hlik.criteria.manipulability import MAN_r
 from hlik.criteria.smoothness import MJE
 from hlik.criteria.soechting import SOA_q, SOA_x
 from hlik.criteria.synergy import MIS, SYN, SYN_r
-from hlik.errors import SettingsError, UnknownNameError
+from hlik.util.errors import SettingsError, UnknownNameError
 
 _CRITERIA: dict[str, type[Criterion]] = {}
 

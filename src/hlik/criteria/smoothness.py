@@ -104,7 +104,7 @@ class Smoothness(Term):
     """Velocity, acceleration and jerk toward the extrapolation of the previous frames (RelaxedIK),
     as one least-squares term: ``stencil . (q_t, ..., q_t-3)`` with the identity Jacobian."""
 
-    sites, part_form = (), "norm"
+    sites, part_form, motion = (), "norm", True
 
     def __init__(self, stencil: np.ndarray, robot: Robot, name: str = "smoothness"):
         self.name, self.stencil, self.unlimited = name, stencil, np.isinf(robot.lower)

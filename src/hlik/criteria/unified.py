@@ -16,8 +16,8 @@ from types import MappingProxyType
 import numpy as np
 
 from hlik.criteria import registry
-from hlik.errors import HlikError, SettingsError
-from hlik.tomlfile import read_toml
+from hlik.util.errors import HlikError, SettingsError
+from hlik.util.tomlfile import read_toml
 
 # Sec. V: functional criteria and their mid-points, per scenario.
 FUNCTIONAL_X0: Mapping[str, Mapping[str, float]] = MappingProxyType(

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from hlik.lazy import lazy_getattr
+from hlik.util.lazy import lazy_getattr
 
 if TYPE_CHECKING:
     from hlik.human.kinematics import HumanKinematics, forward_kinematics, human_model

@@ -11,7 +11,7 @@ import numpy as np
 
 from hlik.human.mmm_format import write_mmm
 from hlik.human.motion import HumanMotion
-from hlik.paths import demo_motion_path
+from hlik.util.paths import demo_motion_path
 
 HEIGHT = 1.75  # m
 RATE = 25.0  # Hz; commands resample to their own rate

@@ -26,10 +26,10 @@ from dataclasses import replace
 import mujoco
 import numpy as np
 
-from hlik.errors import MotionFormatError
 from hlik.human.keypoints import ARM_POINTS, HAND_POINTS, SIDES, Keypoints
 from hlik.human.kinematics import forward_kinematics, human_model, human_spec, shoulder_frame
 from hlik.human.motion import ARM_JOINTS, HumanMotion
+from hlik.util.errors import MotionFormatError
 
 # The markers a fitted motion carries: the keypoints it was fitted to.
 KEYPOINT_MARKERS = tuple(f"{s}_{p}" for s in SIDES for p in (*ARM_POINTS, *HAND_POINTS))

@@ -35,9 +35,9 @@ from pathlib import Path
 
 import numpy as np
 
-from hlik.errors import HlikError, MotionFormatError
 from hlik.human.motion import RATE_RANGE
-from hlik.tomlfile import read_toml
+from hlik.util.errors import HlikError, MotionFormatError
+from hlik.util.tomlfile import read_toml
 
 SIDES = ("left", "right")
 ARM_POINTS = ("shoulder", "elbow", "wrist")

@@ -13,10 +13,10 @@ import mujoco
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from hlik.errors import SettingsError
-from hlik.fk import site_poses
 from hlik.human.motion import HumanMotion
-from hlik.paths import robots_dir
+from hlik.util.errors import SettingsError
+from hlik.util.paths import robots_dir
+from hlik.util.spatial import site_poses
 
 SIDES = ("left", "right")
 

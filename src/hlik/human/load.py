@@ -4,9 +4,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from hlik.errors import MotionFormatError
 from hlik.human.mmm_format import read_mmm
 from hlik.human.motion import HumanMotion
+from hlik.util.errors import MotionFormatError
 
 
 def load_motion(path: str | Path, rate: float | None = None) -> HumanMotion:
@@ -23,8 +23,8 @@ def load_motion(path: str | Path, rate: float | None = None) -> HumanMotion:
     motion's ``notes``, one line each.
 
     Raises:
-        hlik.errors.MotionFormatError: the file is missing, malformed, inconsistent or implausible.
-        hlik.errors.SettingsError: ``rate`` is outside 1-10000 Hz, or the resampled motion would
+        hlik.util.errors.MotionFormatError: the file is missing, malformed, inconsistent or implausible.
+        hlik.util.errors.SettingsError: ``rate`` is outside 1-10000 Hz, or the resampled motion would
             have more than 10^6 frames.
     """
     path = Path(path)

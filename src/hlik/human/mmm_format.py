@@ -4,7 +4,7 @@ Files are parsed with defusedxml (no entity expansion, no external entities). Le
 files are millimetres and are converted to metres here; nothing else in hlik sees millimetres.
 
 Reading checks that a recording is plausible, not only well formed. What would make the subject's
-motion wrong is refused with a :class:`~hlik.errors.MotionFormatError` that names the file, the
+motion wrong is refused with a :class:`~hlik.util.errors.MotionFormatError` that names the file, the
 motion (``subject 'name'`` or ``object 'name'``), the sensor and the problem: lengths or angles in
 another unit, a frame rate outside :data:`~hlik.human.motion.RATE_RANGE`, streams that share fewer
 than two frames. What hlik can work around is read, and said in one line in
@@ -35,9 +35,9 @@ import numpy as np
 from defusedxml import DefusedXmlException
 from scipy.spatial.transform import Rotation
 
-from hlik.atomic import atomic_path
-from hlik.errors import MotionFormatError
 from hlik.human.motion import ARM_JOINTS, ARM_RANGES, RATE_RANGE, HumanMotion, ObjectMotion, _slerp
+from hlik.util.atomic import atomic_path
+from hlik.util.errors import MotionFormatError
 
 MM = 1e-3
 VERSIONS = ("1.0", "2.0")  # MMM versions read; legacy files carry none
@@ -65,7 +65,7 @@ def read_mmm(path: Path) -> HumanMotion:
     """Parse an MMM file; the human is the motion whose kinematics carries the MMM arm joints.
 
     Raises:
-        hlik.errors.MotionFormatError: the file is missing, malformed, or its subject's motion is
+        hlik.util.errors.MotionFormatError: the file is missing, malformed, or its subject's motion is
             implausible (the message names the motion, the sensor and what was expected).
     """
     root = _parse(path)

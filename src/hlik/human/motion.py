@@ -17,7 +17,7 @@ import numpy as np
 from scipy.interpolate import CubicSpline, make_interp_spline
 from scipy.spatial.transform import Rotation, RotationSpline, Slerp
 
-from hlik.errors import SettingsError, UnknownNameError
+from hlik.util.errors import SettingsError, UnknownNameError
 
 # The 14 MMM arm joints every motion must carry (kinematics.md §1.2), proximal -> distal, in the
 # order of the paper's Table I (s_x, s_y, s_z, e_x, e_z, w_x, w_z=w_y).
@@ -144,7 +144,7 @@ class HumanMotion:
         a note.
 
         Raises:
-            hlik.errors.SettingsError: ``factor`` is not a positive finite number.
+            hlik.util.errors.SettingsError: ``factor`` is not a positive finite number.
         """
         if not (math.isfinite(factor) and factor > 0):
             where = self.source or self.name
@@ -185,7 +185,7 @@ class HumanMotion:
         and stay NaN in between.
 
         Raises:
-            hlik.errors.SettingsError: ``rate`` is not a finite rate within :data:`RATE_RANGE`, or the
+            hlik.util.errors.SettingsError: ``rate`` is not a finite rate within :data:`RATE_RANGE`, or the
                 result would have more than :data:`MAX_FRAMES` frames.
         """
         where = self.source or self.name

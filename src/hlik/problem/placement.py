@@ -30,8 +30,6 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.ndimage import uniform_filter
 
-from hlik.errors import SettingsError
-from hlik.fk import site_poses
 from hlik.human.kinematics import (
     HumanKinematics,
     arm_length,
@@ -43,7 +41,8 @@ from hlik.human.motion import HumanMotion
 from hlik.robot.floor import FLOOR_TOLERANCE, floor_height
 from hlik.robot.model import SIDES, Robot, joint_mapping, tcp_poses
 from hlik.robot.reachability import ReachabilityMap, reachability_map
-from hlik.rotations import yaw_rotation
+from hlik.util.errors import SettingsError
+from hlik.util.spatial import site_poses, yaw_rotation
 
 PLACEMENTS = ("reach", "mapped", "working", "shoulders")
 # the share of the best reach score a base pose of ``working`` must keep: the hands stay well inside

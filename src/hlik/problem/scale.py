@@ -14,10 +14,10 @@ import math
 import mujoco
 import numpy as np
 
-from hlik.errors import SettingsError
 from hlik.human.kinematics import human_model
 from hlik.human.motion import HumanMotion
 from hlik.robot.model import SIDES, Robot
+from hlik.util.errors import SettingsError
 
 ARM = ("shoulder", "elbow", "wrist", "tcp")
 SCALE_RANGE = (0.1, 10.0)  # a factor outside it is a typo, not a robot
@@ -44,9 +44,9 @@ def auto_scale(robot: Robot, motion: HumanMotion) -> float:
 def shoulder_heights(robot: Robot, motion: HumanMotion) -> tuple[np.ndarray, float]:
     """The subject's shoulder midpoint at the first frame (3,), world, m, and the height of the
     robot's at home standing on the floor, m."""
-    from hlik.fk import site_poses
     from hlik.human.kinematics import forward_kinematics
     from hlik.robot.floor import floor_height
+    from hlik.util.spatial import site_poses
 
     ids = np.array([robot.site_id(side, "shoulder") for side in SIDES])
     robot_z = float(np.mean(site_poses(robot.model, robot.home[None], ids)[0][0, :, 2])) + floor_height(robot)

@@ -16,7 +16,7 @@ def summary(traj: Trajectory, robot: Robot, evaluation: Evaluation | None, info:
     """The markdown of the result panel: motion, robot, solver, placement and ``info``'s settings;
     the scores (the numbers of ``hlik evaluate --json``, rounded); the solver's diagnostics; the
     hlik version."""
-    from hlik.version import __version__
+    from hlik.util.version import __version__
 
     d = traj.diagnostics
     rate = (traj.n_frames - 1) / (traj.times[-1] - traj.times[0]) if traj.n_frames > 1 else 0.0

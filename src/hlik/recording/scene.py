@@ -9,13 +9,12 @@ import mujoco
 import numpy as np
 import rerun as rr
 
-from hlik.fk import body_poses
 from hlik.human.motion import ObjectMotion
 from hlik.problem.placement import Placement
 from hlik.recording.columns import Columns, Track, _entity, _index, _pose_columns
 from hlik.recording.style import _FILL, SIDE_COLORS, SPACING
 from hlik.robot.model import COLLISION_GROUP, SIDES
-from hlik.rotations import xyzw
+from hlik.util.spatial import body_poses, xyzw
 
 
 def _display_placement(placement: Placement, layout: str) -> Placement:

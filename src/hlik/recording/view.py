@@ -9,13 +9,13 @@ import mujoco
 import numpy as np
 import rerun.blueprint as rrb
 
-from hlik.fk import body_poses
 from hlik.human.kinematics import human_model, qpos_trajectory
 from hlik.recording.columns import _entity
 from hlik.recording.scene import _display_placement
 from hlik.recording.style import CLUSTERS
 from hlik.robot.model import SIDES, Robot
 from hlik.trajectory import Trajectory
+from hlik.util.spatial import body_poses
 
 # Rerun's 3D view: vertical field of view (its default, 55 deg); the camera frames the figures in a
 # cone a tenth narrower vertically, and 1.2 times as wide horizontally (the default layout's view

@@ -12,7 +12,6 @@ from pathlib import Path
 import numpy as np
 import rerun as rr
 
-from hlik.atomic import atomic_path
 from hlik.criteria.functional import position_error, relative_errors, rotation_angle
 from hlik.human.fit import fit_error, keypoint_markers
 from hlik.human.kinematics import human_model, qpos_trajectory
@@ -39,6 +38,7 @@ from hlik.recording.style import (
 from hlik.recording.view import _joint_unit, blueprint, joint_groups, robot_camera, scene_camera
 from hlik.robot.model import SIDES, Robot
 from hlik.trajectory import Trajectory
+from hlik.util.atomic import atomic_path
 
 
 def write_recording(

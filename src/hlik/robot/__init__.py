@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from hlik.lazy import lazy_getattr
+from hlik.util.lazy import lazy_getattr
 
 if TYPE_CHECKING:
     from hlik.robot.model import SIDES, SITES, Robot, available_robots, joint_mapping, load_robot, tcp_poses

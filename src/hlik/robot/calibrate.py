@@ -25,11 +25,11 @@ import numpy as np
 from scipy.optimize import least_squares, linear_sum_assignment, minimize_scalar
 from scipy.spatial.transform import Rotation
 
-from hlik.atomic import atomic_path
 from hlik.human.kinematics import human_model
 from hlik.human.motion import ARM_JOINTS
 from hlik.robot.mapping import DynamicOffset, JointMap, JointMapping
 from hlik.robot.model import SIDES, Robot
+from hlik.util.atomic import atomic_path
 
 SNAP_STEP = np.pi / 4
 SNAP_TOL = 0.1

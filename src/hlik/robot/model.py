@@ -13,14 +13,14 @@ from typing import TYPE_CHECKING
 import mujoco
 import numpy as np
 
-from hlik.errors import HlikError, MotionFormatError, RobotError
-from hlik.fk import site_poses
-from hlik.paths import robots_dir
 from hlik.robot.mapping import JointMapping
 from hlik.robot.model_file import COLLISION_GROUP as COLLISION_GROUP  # re-exported: models' geom groups
 from hlik.robot.model_file import VISUAL_GROUP as VISUAL_GROUP
 from hlik.robot.model_file import ModelFile, compile_model
-from hlik.tomlfile import read_toml
+from hlik.util.errors import HlikError, MotionFormatError, RobotError
+from hlik.util.paths import robots_dir
+from hlik.util.spatial import site_poses
+from hlik.util.tomlfile import read_toml
 
 if TYPE_CHECKING:  # scipy comes with the motion; `hlik robots` needs none
     from hlik.human.motion import HumanMotion
@@ -189,7 +189,7 @@ def robot_toml(name: str) -> Path:
     """The description file of a bundled robot's name, or of a path ending in ``.toml``.
 
     Raises:
-        hlik.errors.RobotError: no such robot or file.
+        hlik.util.errors.RobotError: no such robot or file.
     """
     by_path = name.endswith(".toml")
     path = Path(name) if by_path else robots_dir() / f"{name}.toml"
@@ -210,7 +210,7 @@ def load_robot(name: str, need_mapping: bool = True) -> Robot:
     out are held at home), for ``hlik calibrate`` to derive them.
 
     Raises:
-        hlik.errors.RobotError: unknown name, an unreadable or malformed description (naming the
+        hlik.util.errors.RobotError: unknown name, an unreadable or malformed description (naming the
             file, the table and key), or one inconsistent with its model.
     """
     path = robot_toml(name)

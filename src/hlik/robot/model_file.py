@@ -33,8 +33,8 @@ import mujoco
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from hlik.errors import RobotError
-from hlik.rotations import wxyz_from_rpy
+from hlik.util.errors import RobotError
+from hlik.util.spatial import wxyz_from_rpy
 
 VISUAL_GROUP, COLLISION_GROUP = 1, 3  # MJCF geom groups: what a viewer draws, what collides
 PACKAGE = "package://"

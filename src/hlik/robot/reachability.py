@@ -29,9 +29,9 @@ import mujoco
 import numpy as np
 from scipy.ndimage import uniform_filter
 
-from hlik.cache import UNREADABLE, entry_path, one_line, read_entry, write_entry
-from hlik.fk import site_poses
 from hlik.robot.model import SIDES, SITES, Robot
+from hlik.util.cache import UNREADABLE, entry_path, one_line, read_entry, write_entry
+from hlik.util.spatial import site_poses
 
 CACHE_VERSION = "reach/3"  # 2: hands in front of the shoulders only; 3: entries carry key and checksum
 CELL = 0.08  # m, position cell

@@ -12,9 +12,9 @@ import json
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
-from hlik.atomic import atomic_path
-from hlik.errors import HlikError
-from hlik.paths import cache_dir, robots_dir
+from hlik.util.atomic import atomic_path
+from hlik.util.errors import HlikError
+from hlik.util.paths import cache_dir, robots_dir
 
 FORMAT = "robots/1"
 

@@ -20,10 +20,10 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping
 from types import MappingProxyType
 
-from hlik.errors import UnknownNameError
 from hlik.solvers import jm, jv, mink_stack, qp, slsqp
 from hlik.solvers.base import Diagnostics, Solver, SolverResult
 from hlik.solvers.settings import SolverSettings, SolverSpec
+from hlik.util.errors import UnknownNameError
 
 # The solvers by name; a new solver adds one line here.
 SPECS: Mapping[str, SolverSpec] = MappingProxyType(

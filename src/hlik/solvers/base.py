@@ -13,8 +13,8 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from hlik.errors import SettingsError
 from hlik.problem.problem import Problem
+from hlik.util.errors import SettingsError
 
 
 @dataclass(frozen=True, eq=False)

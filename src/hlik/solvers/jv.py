@@ -43,12 +43,14 @@ from hlik.robot.model import Robot
 from hlik.robot.state import RobotState, robot_state
 from hlik.solvers.base import ConfiguredSolver, SolverResult, check_settings
 from hlik.solvers.frames import (
+    FIRST_FRAME_SCENARIO,
     FrameResult,
     JointBox,
     StepConstraints,
     collision_floors,
     collision_rows,
     constrained_steps,
+    first_frame_terms,
     iterate,
     limit_rows,
     step_budget,
@@ -444,8 +446,9 @@ def solve(
     on them, and the frame is then reported failed)."""
     robot, learned = problem.robot, problem.learned
     config = mink.Configuration(robot.model) if limits else None
-    tasks, first = list(target_terms(settings.scenario)), list(target_terms("pose"))
+    tasks, first = list(target_terms(settings.scenario)), list(target_terms(FIRST_FRAME_SCENARIO))
     criteria = criterion_terms(robot, settings, learned)
+    first_criteria = first_frame_terms(criteria)
     data = mujoco.MjData(robot.model)
     pairs = collision_pairs(robot) if settings.self_collision else None
     bounds = DistanceBounds(pairs) if pairs is not None else None
@@ -465,7 +468,7 @@ def solve(
         def jv_step(x: np.ndarray) -> np.ndarray:
             nonlocal memory, taken
             assert memory is not None
-            stack = first if k == 0 else tasks
+            stack, secondary = (first, first_criteria) if k == 0 else (tasks, criteria)
             hard = None
             if config is not None:
                 config.update(x)
@@ -475,7 +478,7 @@ def solve(
             dq, memory = step(
                 robot,
                 stack,
-                criteria,
+                secondary,
                 x,
                 frame,
                 settings,

@@ -21,11 +21,11 @@ from dataclasses import dataclass
 import mink
 import numpy as np
 
-from hlik.errors import SettingsError
 from hlik.problem.problem import Problem
 from hlik.robot.model import Robot
 from hlik.solvers.base import ConfiguredSolver, SolverResult
 from hlik.solvers.qp import QPSettings, build_solver
+from hlik.util.errors import SettingsError
 
 KINDS = {"tasks": mink.Task, "limits": mink.Limit}
 

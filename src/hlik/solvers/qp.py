@@ -24,14 +24,15 @@ from hlik.criteria.functional import target_terms
 from hlik.criteria.joints import TrunkUpright
 from hlik.criteria.learned import Learned
 from hlik.criteria.smoothness import smoothness_terms
-from hlik.errors import SettingsError
 from hlik.problem.problem import Problem
 from hlik.robot.model import Robot
 from hlik.solvers.base import ConfiguredSolver, SolverResult, check_settings
+from hlik.solvers.frames import FIRST_FRAME_SCENARIO, first_frame_terms
 from hlik.solvers.mink_ik import MinkSolver
 from hlik.solvers.mink_tasks import CriterionTask, HandBandLimit, StateCache
 from hlik.solvers.qp_backend import qp_backends
 from hlik.solvers.settings import SolverSettings
+from hlik.util.errors import SettingsError
 
 # HJA_r's Table II gamma (2) doubled for the QP: beside SYN (gamma 6) it barely acted, and SYN +
 # HJA_r raised 2-Panda's m_hl by 0.042; at 4 by 0.051 (README, quality table), tracking within 2 cm.
@@ -115,16 +116,15 @@ def build_terms(
     robot: Robot,
     settings: QPSettings,
     learned: Learned | None,
-    scenario: str | None = None,
     first: bool = False,
 ) -> list[tuple[Term, float]]:
     """The stack of ``settings`` for ``robot``: targets, smoothness, criteria, each with its weight
     (the cost of its least-squares residual: ``||weight * e||^2`` in the objective).
 
-    ``scenario`` overrides ``settings.scenario`` (the first frame of ``relative`` uses ``pose``);
-    ``first``: the first frame's stack, without the criteria of motion (``Criterion.motion``).
+    ``first``: the first frame's stack (:func:`~hlik.solvers.frames.first_frame_terms`: the TCP
+    poses, no term of motion).
     """
-    scenario = scenario or settings.scenario
+    scenario = FIRST_FRAME_SCENARIO if first else settings.scenario
     position, orientation = target_terms(scenario)
     if scenario == "relative":
         hands = [
@@ -139,12 +139,10 @@ def build_terms(
         terms.append((TrunkUpright(robot), settings.trunk_cost))
     for name in settings.criteria:
         term = registry.criterion(name, robot, learned)
-        if first and term.motion:
-            continue
         # the objective weighs ||e_i||^2 by gamma_i * criterion_cost / k, as the paper weighs h_i
         weight = unified.gamma(name, settings.gamma) * settings.criterion_cost / len(settings.criteria)
         terms.append((term, float(np.sqrt(weight))))
-    return terms
+    return first_frame_terms(terms) if first else terms
 
 
 def build_solver(
@@ -178,7 +176,7 @@ def build_solver(
         solver=settings.solver,
         motion_limits=settings,
         self_collision=settings.self_collision,
-        first_tasks=stack("pose", True),
+        first_tasks=stack(True),
         progress=progress,
         collision_margin=settings.collision_margin,
         collision_detect=settings.collision_detect,

@@ -18,9 +18,9 @@ from pathlib import Path
 from types import MappingProxyType
 
 from hlik.criteria import registry
-from hlik.errors import SettingsError
-from hlik.paths import tasks_dir
-from hlik.tomlfile import read_toml
+from hlik.util.errors import SettingsError
+from hlik.util.paths import tasks_dir
+from hlik.util.tomlfile import read_toml
 
 SCENARIOS = ("pose", "relative")
 SOLVER_TABLES = ("qp", "jv", "slsqp", "mink")

@@ -8,9 +8,9 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from hlik.criteria import registry
-from hlik.errors import HlikError
 from hlik.solvers import SOLVER_NAMES, SPECS
-from hlik.tomlfile import read_toml
+from hlik.util.errors import HlikError
+from hlik.util.tomlfile import read_toml
 
 PAPER = Path(__file__).with_name("paper.toml")
 BUNDLED = ("paper", "quick")  # approach files shipped beside this module, usable by name

@@ -19,7 +19,6 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from hlik.atomic import atomic_path
 from hlik.criteria.functional import position_error
 from hlik.criteria.learned import Learned
 from hlik.human.motion import HumanMotion
@@ -27,7 +26,8 @@ from hlik.pipeline import RunSpec, read_motion, run
 from hlik.problem.placement import Placement
 from hlik.robot.model import Robot
 from hlik.study.approaches import Approach
-from hlik.version import __version__
+from hlik.util.atomic import atomic_path
+from hlik.util.version import __version__
 
 SKIP = 1.0  # s cut from the start of a take (the subject's T-pose and first reach) when cropping
 

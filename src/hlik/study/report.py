@@ -19,10 +19,10 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from scipy.cluster import hierarchy  # noqa: E402
 
-from hlik.atomic import atomic_path  # noqa: E402
 from hlik.criteria import unified  # noqa: E402
 from hlik.study.analysis import CUTOFF, Correlation, Ranking, ward  # noqa: E402
-from hlik.version import __version__  # noqa: E402
+from hlik.util.atomic import atomic_path  # noqa: E402
+from hlik.util.version import __version__  # noqa: E402
 
 WEAK = 0.3  # |rho| below which a criterion counts as weakly correlated with another
 STYLE = (

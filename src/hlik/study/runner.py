@@ -13,10 +13,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from hlik.atomic import atomic_path
 from hlik.criteria.learned import learn
 from hlik.criteria.unified import Metric
-from hlik.errors import HlikError
 from hlik.problem.placement import placement_from_spec
 from hlik.robot.model import load_robot
 from hlik.robot.reachability import reachability_map
@@ -24,6 +22,8 @@ from hlik.study.analysis import Correlation, Ranking, correlate, correlation_fra
 from hlik.study.approaches import Approach
 from hlik.study.dataset import Cell, cell_motion, read_dataset, run_cell, write_cell
 from hlik.study.report import write_report
+from hlik.util.atomic import atomic_path
+from hlik.util.errors import HlikError
 
 
 @dataclass(frozen=True)

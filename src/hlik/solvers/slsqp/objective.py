@@ -17,6 +17,7 @@ from hlik.criteria.learned import Learned
 from hlik.criteria.smoothness import ACCELERATION, JERK, VELOCITY, Smoothness
 from hlik.robot.model import Robot
 from hlik.robot.state import robot_state
+from hlik.solvers.frames import FIRST_FRAME_SCENARIO, first_frame_terms
 from hlik.solvers.gradients import gradient_of, metric, part_gradients_of, part_metric
 from hlik.solvers.slsqp.groove import groove, groove_curvature, groove_secant
 from hlik.solvers.slsqp.settings import SLSQPSettings
@@ -57,19 +58,15 @@ def build_losses(
 ) -> list[Loss]:
     """The losses of ``settings`` with non-zero weight; ``first``: those of the first frame.
 
-    The first frame of ``relative`` tracks the TCP poses "as in Section V-A": with the default
-    (pose) weights, and the same criteria. The first frame leaves out the criteria of motion
-    (``Criterion.motion``) and the minimum velocity, acceleration and jerk: it has no motion before
-    it, and they would hold it at the pose it starts from (the mapped human's, on 2-Panda's Cut
-    take 12 cm and 21° off the hand targets, which then took 30 frames to catch up).
+    The first frame (:func:`~hlik.solvers.frames.first_frame_terms`) has no term of motion, and
+    in ``relative`` tracks the TCP poses "as in Section V-A": with the default (pose) weights, and
+    the same criteria.
     """
-    if first and settings.scenario == "relative":
+    if first and settings.scenario != FIRST_FRAME_SCENARIO:
         pose = SLSQPSettings()
         settings = replace(
             pose, criteria=settings.criteria, gamma=settings.gamma, position_gamma=settings.position_gamma
         )
-    if first:
-        settings = replace(settings, velocity_cost=0.0, acceleration_cost=0.0, jerk_cost=0.0)
     weighted: list[tuple[Term, float]] = [
         (fPOS(), settings.position_cost),
         (fORI(), settings.orientation_cost),
@@ -81,10 +78,10 @@ def build_losses(
     ]
     if robot.extra_joints:
         weighted.append((TrunkUpright(robot), settings.trunk_cost))
-    for name in settings.criteria:
-        term = registry.criterion(name, robot, learned)
-        if not (first and term.motion):
-            weighted.append((term, settings.criterion_cost / len(settings.criteria)))
+    weight = settings.criterion_cost / max(len(settings.criteria), 1)
+    weighted += [(registry.criterion(name, robot, learned), weight) for name in settings.criteria]
+    if first:
+        weighted = first_frame_terms(weighted)
     gamma = {name: settings.position_gamma for name in POSITION_TERMS}
     gamma |= {name: unified.gamma(name, settings.gamma) for name in settings.criteria}
     return [Loss(t, float(w), float(gamma.get(t.name, 1.0))) for t, w in weighted if w > 0]

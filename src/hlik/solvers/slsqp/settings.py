@@ -4,9 +4,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from hlik.errors import SettingsError
 from hlik.solvers.base import check_settings
 from hlik.solvers.settings import SolverSettings
+from hlik.util.errors import SettingsError
 
 PRECONDITIONERS = ("gauss_newton", "scale", "none")
 

@@ -1,7 +1,7 @@
 """Disk cache entries that prove themselves: each carries its key and a checksum of its arrays.
 
 Learned pieces (:mod:`hlik.criteria.learned`) and reachability maps (:mod:`hlik.robot.reachability`)
-are cached as ``.npz`` files in :func:`hlik.paths.cache_dir`. An entry is trusted only if it is
+are cached as ``.npz`` files in :func:`hlik.util.paths.cache_dir`. An entry is trusted only if it is
 whole, matches its checksum and was written for the same key (format, robot, a hash of the model,
 what it was made from); otherwise the caller makes it again and says so in one line.
 """
@@ -17,8 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
-from hlik.atomic import atomic_path
-from hlik.paths import cache_dir
+from hlik.util.atomic import atomic_path
+from hlik.util.paths import cache_dir
 
 ENTRY = "entry."  # prefix of the arrays holding a cache entry's key and checksum
 # What np.load raises on a truncated or damaged archive (zip, zlib and npy errors).

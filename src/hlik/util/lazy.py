@@ -12,8 +12,8 @@ from typing import Any
 def lazy_getattr(package: str, where: Mapping[str, str], namespace: dict[str, Any]) -> Callable[[str], Any]:
     """The module ``__getattr__`` of ``package``: name -> the attribute of that name in the module
     ``where[name]``, stored in ``namespace`` (the package's globals) once imported; any other name
-    that is a submodule of ``package``, that submodule (``import hlik; hlik.paths`` works without
-    importing ``hlik.paths`` first, as for any package that imports its submodules).
+    that is a submodule of ``package``, that submodule (``import hlik; hlik.util.paths`` works without
+    importing ``hlik.util.paths`` first, as for any package that imports its submodules).
 
     Raises:
         AttributeError: a name neither in ``where`` nor a submodule.

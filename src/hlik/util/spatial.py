@@ -1,11 +1,14 @@
 """Rotations and frames: the helpers every stage shares (angles between rotations, rotation
-vectors, cross products and their matrices, yaw about the vertical, quaternion orders). Matrices
-are (..., 3, 3), vectors (..., 3); MuJoCo's quaternions are w, x, y, z, SciPy's and Rerun's x, y,
-z, w.
+vectors, cross products and their matrices, yaw about the vertical, quaternion orders) and forward
+kinematics over whole trajectories with MuJoCo (every stage that needs poses of many frames calls
+:func:`site_poses` or :func:`body_poses` instead of looping over ``mj_kinematics`` itself).
+Matrices are (..., 3, 3), vectors (..., 3); MuJoCo's quaternions are w, x, y, z, SciPy's and
+Rerun's x, y, z, w.
 """
 
 from __future__ import annotations
 
+import mujoco
 import numpy as np
 from scipy.spatial.transform import Rotation
 
@@ -75,3 +78,49 @@ def xyzw(wxyz: np.ndarray) -> np.ndarray:
 def wxyz_from_rpy(rpy: np.ndarray) -> np.ndarray:
     """(4,) MuJoCo quaternion (w, x, y, z) of URDF roll, pitch, yaw (fixed axes x, y, z), rad."""
     return np.roll(Rotation.from_euler("xyz", rpy).as_quat(), 1)
+
+
+def site_poses(model: mujoco.MjModel, qpos: np.ndarray, sites: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """World poses of ``sites`` for every configuration.
+
+    Args:
+        model: A MuJoCo model.
+        qpos: (T, nq) configurations.
+        sites: (...,) integer site ids; any shape.
+
+    Returns:
+        (T, ..., 3) positions and (T, ..., 3, 3) rotation matrices.
+    """
+    sites = np.asarray(sites, dtype=int)
+    data = mujoco.MjData(model)
+    pos = np.empty((len(qpos), sites.size, 3))
+    rot = np.empty((len(qpos), sites.size, 9))
+    flat = sites.ravel()
+    for k, q in enumerate(qpos):
+        data.qpos[:] = q
+        mujoco.mj_kinematics(model, data)
+        pos[k] = data.site_xpos[flat]
+        rot[k] = data.site_xmat[flat]
+    shape = (len(qpos), *sites.shape)
+    return pos.reshape(*shape, 3), rot.reshape(*shape, 3, 3)
+
+
+def body_poses(model: mujoco.MjModel, qpos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """World poses of all bodies for every configuration.
+
+    Args:
+        model: A MuJoCo model.
+        qpos: (T, nq) configurations.
+
+    Returns:
+        (T, nbody, 3) positions and (T, nbody, 4) quaternions, scalar first (MuJoCo's wxyz).
+    """
+    data = mujoco.MjData(model)
+    pos = np.empty((len(qpos), model.nbody, 3))
+    quat = np.empty((len(qpos), model.nbody, 4))
+    for k, q in enumerate(qpos):
+        data.qpos[:] = q
+        mujoco.mj_kinematics(model, data)
+        pos[k] = data.xpos
+        quat[k] = data.xquat
+    return pos, quat

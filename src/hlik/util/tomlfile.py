@@ -6,7 +6,7 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from hlik.errors import SettingsError
+from hlik.util.errors import SettingsError
 
 if sys.version_info >= (3, 11):
     import tomllib

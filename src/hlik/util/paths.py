@@ -6,14 +6,14 @@ import os
 import sys
 from pathlib import Path
 
-from hlik.errors import SettingsError
+from hlik.util.errors import SettingsError
 
 if sys.version_info >= (3, 11):
     import tomllib
 else:  # pragma: no cover
     import tomli as tomllib
 
-_PACKAGE = Path(__file__).resolve().parent
+_PACKAGE = Path(__file__).resolve().parents[1]  # hlik/, this module sits in hlik/util/
 CONFIG = "hlik.toml"  # in the working folder: settings that outlive one command (``corpus = "DIR"``)
 
 
