@@ -38,7 +38,6 @@ from hlik.criteria.base import Sample, Term
 from hlik.criteria.functional import fORI, fORI_off, target_terms
 from hlik.criteria.learned import Learned
 from hlik.problem.problem import Problem
-from hlik.robot.collision import CollisionPairs, DistanceBounds, collision_pairs
 from hlik.robot.model import Robot
 from hlik.robot.state import RobotState, robot_state
 from hlik.solvers.base import ConfiguredSolver, SolverResult, check_settings
@@ -47,8 +46,6 @@ from hlik.solvers.frames import (
     FrameResult,
     JointBox,
     StepConstraints,
-    collision_floors,
-    collision_rows,
     constrained_steps,
     first_frame_terms,
     iterate,
@@ -58,6 +55,7 @@ from hlik.solvers.frames import (
 )
 from hlik.solvers.gradients import gradient, part_metric
 from hlik.solvers.limits import MotionLimits
+from hlik.solvers.mink_tasks import SelfCollisionLimit
 from hlik.solvers.qp_backend import solve_qp
 from hlik.solvers.settings import SolverSettings
 
@@ -369,18 +367,16 @@ def step(
     memory: Memory,
     data: mujoco.MjData | None = None,
     box: JointBox | None = None,
-    pairs: CollisionPairs | None = None,
-    bounds: DistanceBounds | None = None,
+    collision: SelfCollisionLimit | None = None,
     stop_if_reached: bool = False,
-    floors: tuple[np.ndarray, np.ndarray] | None = None,
     hard: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> tuple[np.ndarray, Memory]:
-    """One JV step from ``q`` (n,) within ``box`` (default: the joint limits), keeping the collision
-    ``pairs`` apart (:func:`avoiding_least_norm`, if given; ``bounds`` carried across steps; none
-    closer than its ``floors``, :func:`~hlik.solvers.frames.collision_floors`): the
-    joint change dq (n,), before clipping, and the new memory. ``stop_if_reached``: no step (zeros)
-    where :func:`targets_reached`. ``hard``: a caller's limit rows on the step, (k, n), (k,)
-    (:func:`~hlik.solvers.frames.limit_rows`), kept as :func:`constrained_steps` says.
+    """One JV step from ``q`` (n,) within ``box`` (default: the joint limits), keeping the rows of
+    ``collision`` (if given; the QP's :class:`~hlik.solvers.mink_tasks.SelfCollisionLimit`, its
+    frame's box set): the joint change dq (n,), before clipping, and the new memory.
+    ``stop_if_reached``: no step (zeros) where :func:`targets_reached`. ``hard``: a caller's limit
+    rows on the step, (k, n), (k,) (:func:`~hlik.solvers.frames.limit_rows`), kept as
+    :func:`constrained_steps` says.
 
     The null-space bound halves whenever the null-space step reverses: the steep H (and the
     criteria) make bounded gradient steps of a fixed size zig-zag across their minimum, so a frame
@@ -418,8 +414,8 @@ def step(
     # clipped here, not only by iterate: the collision rows are checked on the step taken
     dq = box.clip(q + dq) - q
     a_col, b_col = np.zeros((0, robot.dof)), np.zeros(0)
-    if pairs is not None and len(pairs):
-        a_col, b_col = collision_rows(robot, data, pairs, bounds, settings, floors)  # q's kinematics in data
+    if collision is not None:
+        a_col, b_col = collision.rows(data)  # q's kinematics in data
     a_hard, b_hard = hard if hard is not None else (None, None)
     tries = constrained_steps(box, q, settings.max_step, a_col, b_col, a_hard=a_hard, b_hard=b_hard)
     rows, rhs = tries[0].rows, tries[0].bound  # every row: the torque limits and the collision rows
@@ -450,8 +446,8 @@ def solve(
     criteria = criterion_terms(robot, settings, learned)
     first_criteria = first_frame_terms(criteria)
     data = mujoco.MjData(robot.model)
-    pairs = collision_pairs(robot) if settings.self_collision else None
-    bounds = DistanceBounds(pairs) if pairs is not None else None
+    margins = (settings.collision_margin, settings.collision_detect, settings.collision_gain)
+    collision = SelfCollisionLimit(robot, *margins) if settings.self_collision else None
     memory: Memory | None = None
 
     def solve_frame(k: int, frame: Sample, q: np.ndarray, box: JointBox) -> FrameResult:
@@ -463,7 +459,8 @@ def solve(
         memory = replace(memory, null_bound=settings.max_null, constrained=False, missed=False)
 
         taken = 0
-        floors = collision_floors(robot, data, pairs, box, settings, bounds)
+        if collision is not None:
+            collision.set_box(box)
 
         def jv_step(x: np.ndarray) -> np.ndarray:
             nonlocal memory, taken
@@ -485,10 +482,8 @@ def solve(
                 memory,
                 data,
                 box,
-                pairs,
-                bounds,
+                collision,
                 taken > 0,
-                floors,
                 hard,
             )
             taken += 1

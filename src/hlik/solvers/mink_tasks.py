@@ -179,10 +179,13 @@ class SelfCollisionLimit(Limit):
         """The frame's braking floors (:func:`~hlik.solvers.frames.collision_floors`)."""
         self.floors = collision_floors(self.robot, self.data, self.pairs, box, self.settings, self.bounds)
 
-    def compute_qp_inequalities(self, configuration: mink.Configuration, dt: float) -> Constraint:
+    def rows(self, data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
+        """The rows (k, n) and bounds (k,) on the step at the configuration whose kinematics
+        ``data`` holds (JV's own data; mink's configuration's in the QP)."""
         if self.pairs is None or not len(self.pairs):
-            return Constraint()
-        rows, bound = collision_rows(
-            self.robot, configuration.data, self.pairs, self.bounds, self.settings, self.floors
-        )
+            return np.zeros((0, self.robot.dof)), np.zeros(0)
+        return collision_rows(self.robot, data, self.pairs, self.bounds, self.settings, self.floors)
+
+    def compute_qp_inequalities(self, configuration: mink.Configuration, dt: float) -> Constraint:
+        rows, bound = self.rows(configuration.data)
         return Constraint(G=rows, h=bound) if len(bound) else Constraint()
