@@ -39,6 +39,32 @@ def test_a_solver_gamma_table_overrides_the_stack_gamma_for_that_solver_alone(tm
     assert dict(stack.settings("qp").gamma) == {"HJA_r": 4.0, "SYN": 3.0, "EEA": 1.0}
 
 
+def test_a_robot_table_overrides_the_solver_table_for_that_robot_alone(tmp_path):
+    """``[qp.robot.NAME]`` over ``[qp]`` for the robot named NAME, in the QP and the mink stack
+    that starts from it; other robots and solvers keep the solver's table."""
+    path = tmp_path / "mine.toml"
+    path.write_text("[qp]\norientation_cost = 2.0\n[qp.robot.armar6]\norientation_cost = 3.0\n")
+    stack = load_stack(path)
+    assert stack.robots("qp") == ("armar6",)
+    assert stack.settings("qp", "armar6").orientation_cost == 3.0
+    assert stack.settings("mink", "armar6").orientation_cost == 3.0
+    assert stack.settings("qp", "armar3").orientation_cost == 2.0
+    assert stack.settings("qp").orientation_cost == 2.0
+    ee = load_stack("ee_pose")
+    assert (
+        ee.settings("slsqp", "armar6").orientation_cost > ee.settings("slsqp", "dual_panda").orientation_cost
+    )
+
+
+def test_a_run_reads_its_robot_s_table():
+    """The pipeline gives the solver the stack's settings for the robot it retargets to."""
+    from hlik.pipeline import RunSpec, solver_settings
+
+    spec = RunSpec(robot="armar6", solver="qp")
+    stack = load_stack("ee_pose")
+    assert solver_settings(spec, stack, "armar6") == stack.settings("qp", "armar6") != stack.settings("qp")
+
+
 def test_relative_stack_scales_criteria_by_ten():
     pose, relative = load_stack("ee_pose"), load_stack("relative_pose")
     assert relative.scenario == "relative"
@@ -66,6 +92,10 @@ def test_with_criteria_replaces_the_list():
         ("[qp]\ngamma = 3", "[qp.gamma] must be a table"),
         ("[qp]\nself_collision = 1", "qp.self_collision must be true or false"),
         ("colour = 'red'", "unknown key 'colour' in the top level"),
+        ("[qp.robot.armar6]\nspeed = 1.0", "unknown key 'speed' in [qp.robot.armar6]"),
+        ("[qp.robot.armar6]\norientation_cost = 'x'", "qp.orientation_cost must be a number"),
+        ("[qp.robot.armar6.gamma]\nSYN = 1.0", "unknown key 'gamma' in [qp.robot.armar6]"),
+        ("[qp]\nrobot = 3", "[qp.robot] must hold one table per robot name"),
         ("scenario = ", "not valid TOML"),
     ],
 )

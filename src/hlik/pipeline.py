@@ -189,7 +189,7 @@ def place(
     if rule == "optimize":
         # the spec's own settings where it is a QP run; the stack's QP weights otherwise
         qp = spec if spec.solver == "qp" else replace(spec, solver="qp", gradients="analytic", settings={})
-        fast = get_solver("qp", solver_settings(qp, spec.task_stack()))
+        fast = get_solver("qp", solver_settings(qp, spec.task_stack(), robot.name))
         where, candidates = optimize_placement(motion, robot, fast, learned, scenario)
         tried = tuple(candidates)
     else:
@@ -197,11 +197,12 @@ def place(
     return where, tried, notes + placement_notes(robot, where)
 
 
-def solver_settings(spec: RunSpec, stack: Stack) -> object | None:
-    """The solver's settings: the stack's, with the spec's gradients and overrides (None for jm)."""
+def solver_settings(spec: RunSpec, stack: Stack, robot: str | None = None) -> object | None:
+    """The solver's settings: the stack's (for the robot named ``robot``, its table in the stack
+    if any), with the spec's gradients and overrides (None for jm)."""
     if SPECS[spec.solver].settings is None:
         return None
-    settings = stack.settings(spec.solver)
+    settings = stack.settings(spec.solver, robot)
     if spec.solver == "slsqp":
         settings = replace(settings, gradients=spec.gradients)
     return replace(settings, **spec.settings) if spec.settings else settings
@@ -240,7 +241,7 @@ def run(
     if placement is None:
         placement, tried, placed = place(spec, robot, motion, learned, scenario, progress)
         notes += placed
-    settings = solver_settings(spec, stack)
+    settings = solver_settings(spec, stack, robot.name)
     stage = f"retargeting to {robot.title} ({spec.solver})"
     step = (lambda k: progress(stage, k + 1, motion.n_frames)) if progress else None
     _say(progress, stage, 0, motion.n_frames)

@@ -24,6 +24,7 @@ from hlik.util.tomlfile import read_toml
 
 SCENARIOS = ("pose", "relative")
 SOLVER_TABLES = ("qp", "jv", "slsqp", "mink")
+ROBOT_TABLE = "robot"  # [qp.robot.armar6]: that robot's settings over [qp]'s
 
 
 @dataclass(frozen=True)
@@ -49,11 +50,22 @@ class Stack:
         _check_criteria(tuple(criteria), self.name)
         return dataclasses.replace(self, criteria=tuple(criteria))
 
-    def settings(self, solver: str):
-        """The settings object of ``solver`` (``qp``, ``jv``, ``slsqp``) for this stack."""
+    def robots(self, solver: str) -> tuple[str, ...]:
+        """The robots with their own table for ``solver`` (``[<solver>.robot.<name>]``)."""
+        return tuple(self.solvers.get(solver, {}).get(ROBOT_TABLE, {}))  # type: ignore[arg-type]
+
+    def settings(self, solver: str, robot: str | None = None):
+        """The settings object of ``solver`` (``qp``, ``jv``, ``slsqp``) for this stack; with
+        ``robot`` (a robot's ``name``), its ``[<solver>.robot.<name>]`` table over the solver's."""
         cls = settings_class(solver)
         # [mink] is the QP on mink: it starts from the [qp] table
-        table = {**(self.solvers.get("qp", {}) if solver == "mink" else {}), **self.solvers.get(solver, {})}
+        tables = [self.solvers.get("qp", {})] if solver == "mink" else []
+        tables.append(self.solvers.get(solver, {}))
+        table: dict[str, object] = {}
+        for t in tables:
+            table |= {k: v for k, v in t.items() if k != ROBOT_TABLE}
+        for t in tables:
+            table |= t.get(ROBOT_TABLE, {}).get(robot, {})  # type: ignore[attr-defined]
         solver_gamma: Mapping[str, float] = table.pop("gamma", {})  # type: ignore[assignment]
         gamma = MappingProxyType({**cls().gamma, **self.gamma, **solver_gamma})  # onto the solver's own
         return cls(criteria=self.criteria, scenario=self.scenario, gamma=gamma, **table)
@@ -104,10 +116,22 @@ def _parse(raw: dict, path: Path) -> Stack:
         if not isinstance(table, dict):
             raise SettingsError(f"{path}: [{solver}] must be a table")
         fields = {f.name: f for f in dataclasses.fields(settings_class(solver))}
-        _check_keys(table, set(fields) - {"criteria", "scenario"}, path, f"[{solver}]")
-        solvers[solver] = MappingProxyType(
-            {k: _setting(solver, k, v, fields, path) for k, v in table.items()}
-        )
+        allowed = set(fields) - {"criteria", "scenario"}
+        _check_keys(table, allowed | {ROBOT_TABLE}, path, f"[{solver}]")
+        parsed = {k: _setting(solver, k, v, fields, path) for k, v in table.items() if k != ROBOT_TABLE}
+        robots = table.get(ROBOT_TABLE, {})
+        if not isinstance(robots, dict) or not all(isinstance(t, dict) for t in robots.values()):
+            raise SettingsError(f"{path}: [{solver}.{ROBOT_TABLE}] must hold one table per robot name")
+        by_robot = {}
+        for robot, overrides in robots.items():
+            where = f"[{solver}.{ROBOT_TABLE}.{robot}]"
+            _check_keys(overrides, allowed - {"gamma"}, path, where)
+            by_robot[robot] = MappingProxyType(
+                {k: _setting(solver, k, v, fields, path) for k, v in overrides.items()}
+            )
+        if by_robot:
+            parsed[ROBOT_TABLE] = MappingProxyType(by_robot)
+        solvers[solver] = MappingProxyType(parsed)
     name = raw.get("name", path.stem)
     if not isinstance(name, str) or not name.strip():
         raise SettingsError(f"{path}: name must be text, got {name!r}")
@@ -121,6 +145,8 @@ def _parse(raw: dict, path: Path) -> Stack:
     for solver in SOLVER_TABLES:  # refuse bad values now, naming the file, not when a solver starts
         try:
             stack.settings(solver)
+            for robot in stack.robots(solver):
+                stack.settings(solver, robot)
         except SettingsError as e:
             owner = f"{settings_class(solver).__name__}."
             raise SettingsError(f"{path}: [{solver}] {str(e).removeprefix(owner)}") from None
