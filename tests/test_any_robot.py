@@ -205,7 +205,8 @@ def test_auto_scale_fits_the_subject_to_the_g1_arms(g1, cut_take, tmp_path):
     assert 0.45 < robot_arm < 0.5  # shoulder to TCP, the README's 0.48 m
     human = human_model(scaled.height)
     np.testing.assert_allclose(arm_length(human, human.qpos0), robot_arm, rtol=1e-9)
-    assert scale_subject(motion, load_robot("armar6")) is motion  # bundled robots: as recorded
+    assert scale_subject(motion, load_robot("armar3")) is motion  # ARMAR-III, 2-Panda: as recorded
+    assert scale_subject(motion, load_robot("armar6")).height > 1.4 * motion.height  # scaled to its arms
     bad = CliRunner().invoke(app, ["run", "--robot", str(G1), "--scale", "0", "-o", str(tmp_path / "x.rrd")])
     assert (
         bad.exit_code != 0 and "subject scale (--scale, subject_scale) must be auto or 0.1-10" in bad.output

@@ -168,7 +168,7 @@ def test_the_reachability_map_leaves_out_hands_behind_the_back(name):
 def test_a_problem_is_placed_by_the_robots_own_rule(name):
     robot = load_robot(name)
     problem = build_problem(demo_motion().crop(1.0, 1.5), robot)
-    assert problem.placement.method == robot.placement == ("mapped" if name == "dual_panda" else "reach")
+    assert problem.placement.method == robot.placement == ("reach" if name == "armar3" else "mapped")
 
 
 def _working_miss(robot, human, placement) -> float:

@@ -217,7 +217,8 @@ def test_the_readmes_toy_criterion_does_what_it_says():
         state = robot_state(robot, q, jacobians=True)
         numeric = central_differences(lambda x: crit.residual(robot_state(robot, x), None), q)
         np.testing.assert_allclose(crit.jacobian(state, None), numeric, atol=1e-6)
-        spec = dict(motion=None, robot="armar6", solver="qp", span=(2.0, 3.0))
+        # where reach stands ARMAR-6 (unscaled) it raises its elbows; its default keeps them down
+        spec = dict(motion=None, robot="armar6", solver="qp", span=(2.0, 3.0), placement="reach", scale=1.0)
         plain = hlik.run(hlik.RunSpec(**spec, criteria=()))
         down = hlik.run(hlik.RunSpec(**spec, criteria=("ELB",)))
 

@@ -14,7 +14,7 @@ from typer.testing import CliRunner
 from hlik.cli import app
 from hlik.criteria import registry
 from hlik.criteria.unified import Metric, load_metric
-from hlik.robot.model import SIDES
+from hlik.robot.model import SIDES, load_robot
 from hlik.study.analysis import hierarchy_weights, spearman, ward
 from hlik.study.approaches import Approach, load_approaches
 from hlik.study.runner import plan, run_cells, run_study
@@ -189,7 +189,7 @@ def test_a_take_and_robot_are_placed_once_for_all_their_approaches(tmp_path, mon
     runner._scene.cache_clear()
     cells = plan([demo_motion_path()], ["armar6"], TINY, 0.2)
     outcomes = run_cells(cells, tmp_path, workers=1)
-    assert not any(o.error for o in outcomes) and calls == ["reach"]
+    assert not any(o.error for o in outcomes) and calls == [load_robot("armar6").placement]
     # the shared placement is the one each cell would have found alone
     robot, learned = runner._robot("armar6")
     alone = run_cell(cells[1], robot, learned)

@@ -82,7 +82,8 @@ PlacementOpt = Annotated[
         "subject's distance from the shoulders), optimize (the best of reach, mapped and others "
         "by m_hl,f of a fast QP run), shoulders (on the human's), or X,Y,YAW (world m, m, deg); "
         "each stands the robot on the floor. X,Y,YAW,Z also sets the base height (m; off the "
-        "floor, warned). Default: the robot's (robots/<name>.toml; reach, 2-Panda mapped).",
+        "floor, warned). Default: the robot's (robots/<name>.toml; ARMAR-III reach, ARMAR-6 and "
+        "2-Panda mapped).",
         show_default=False,
     ),
 ]
@@ -90,7 +91,7 @@ ScaleOpt = Annotated[
     str | None,
     typer.Option(
         help="Scale the subject before retargeting: auto (to the robot's arm length, about the "
-        "shoulders) or a factor. Default: the robot's (1 for ARMAR-III, ARMAR-6, 2-Panda, as in the paper).",
+        "shoulders) or a factor. Default: the robot's (ARMAR-III, 2-Panda 1, as in the paper; ARMAR-6 auto).",
         show_default=False,
     ),
 ]

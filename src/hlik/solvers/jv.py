@@ -472,20 +472,8 @@ def solve(
                 hard = limit_rows(limits, config, frame.dt, robot.dof)
             # the first step is always taken, so that the hands follow a target that moves by less
             # than the thresholds, and the null space acts once per frame
-            dq, memory = step(
-                robot,
-                stack,
-                secondary,
-                x,
-                frame,
-                settings,
-                memory,
-                data,
-                box,
-                collision,
-                taken > 0,
-                hard,
-            )
+            args = (settings, memory, data, box, collision, taken > 0, hard)
+            dq, memory = step(robot, stack, secondary, x, frame, *args)
             taken += 1
             return dq
 
