@@ -12,13 +12,13 @@ self-collision. What a controller checks (:mod:`hlik.executable`): ``acc`` the l
 acceleration over its limit, ``acc>%`` the share of frames above an acceleration limit, ``tau`` the
 largest torque over its effort limit, ``tau>%`` the frames above one, ``stop %`` the frames with a
 joint within 0.5 deg of a stop, ``floor cm`` the lowest point of the robot against the floor (worst
-take), ``lag %`` the frames with a hand more than 5 cm off, ``fORI`` the median hand orientation
-error in degrees. Posture (:mod:`hlik.posture`, medians over the takes): ``lean`` the trunk lean's
-median difference from the subject's in degrees, ``behind %`` the frames with an elbow more than 5
-cm behind the shoulders' frontal plane (either arm; ``subj %`` the subject's), ``hands`` the hands'
-distance in front of the shoulders over the subject's (per arm length), ``path`` the arm joints'
-path over the mapped human pose's. An approach ``solver@stack+...`` takes its weights from that
-stack (``slsqp@paper_opt``).
+take), ``lag %`` the frames with a hand more than 5 cm off, ``fORI`` (``fORI95``) the median (95th
+percentile) hand orientation error in degrees. Posture (:mod:`hlik.posture`, medians over the
+takes): ``lean`` the trunk lean's median difference from the subject's in degrees, ``behind %`` the
+frames with an elbow more than 5 cm behind the shoulders' frontal plane (either arm; ``subj %`` the
+subject's), ``hands`` the hands' distance in front of the shoulders over the subject's (per arm
+length), ``path`` the arm joints' path over the mapped human pose's. An approach
+``solver@stack+...`` takes its weights from that stack (``slsqp@paper_opt``).
 
 Run by hand: ``python bench/quality.py [--robots armar3,armar6] [--approaches qp,qp+SYN]
 [--set criterion_cost=0.1]`` (``--set`` overrides a field of the solvers' settings; ``--set
@@ -137,6 +137,7 @@ def run(
         "floor": 100 * max(floor, key=abs),
         "lag": 100 * np.mean(np.concatenate([np.any(e.reshape(-1, 2) > 0.05, axis=1) for e in fpos])),
         "fori": np.degrees(np.median(np.concatenate(fori))),
+        "fori95": np.degrees(np.percentile(np.concatenate(fori), 95)),
         "lean": float(np.median(lean)),
         "behind": 100 * np.mean(np.concatenate(behind)),
         "subj_behind": 100 * np.mean(np.concatenate(subject_behind)),
@@ -183,6 +184,7 @@ def main() -> None:
         ("floor cm", 8),
         ("lag %", 5),
         ("fORI", 5),
+        ("fORI95", 6),
         ("lean", 5),
         ("behind %", 8),
         ("subj %", 6),
@@ -209,8 +211,8 @@ def main() -> None:
                 f"{100 * r['fpos']:8.2f} {100 * r['freach']:8.2f} {100 * r['fpos_off']:7.2f} {r['ms']:8.2f} "
                 f"{r['capped']:8.1f} {r['speed']:6.2f} {r['contact']:9.1f} {r['acc']:5.2f} "
                 f"{r['acc_over']:5.1f} {r['tau']:5.2f} {r['tau_over']:5.1f} {r['stop']:6.1f} "
-                f"{r['floor']:8.2f} {r['lag']:5.1f} {r['fori']:5.1f} {r['lean']:5.1f} {r['behind']:8.1f} "
-                f"{r['subj_behind']:6.1f} {r['hands']:5.2f} {r['path']:5.2f}",
+                f"{r['floor']:8.2f} {r['lag']:5.1f} {r['fori']:5.1f} {r['fori95']:6.1f} {r['lean']:5.1f} "
+                f"{r['behind']:8.1f} {r['subj_behind']:6.1f} {r['hands']:5.2f} {r['path']:5.2f}",
                 flush=True,
             )
 
