@@ -45,7 +45,7 @@ def test_a_robot_table_overrides_the_solver_table_for_that_robot_alone(tmp_path)
     path = tmp_path / "mine.toml"
     path.write_text("[qp]\norientation_cost = 2.0\n[qp.robot.armar6]\norientation_cost = 3.0\n")
     stack = load_stack(path)
-    assert stack.robots("qp") == ("armar6",)
+    assert tuple(stack.robots["qp"]) == ("armar6",)
     assert stack.settings("qp", "armar6").orientation_cost == 3.0
     assert stack.settings("mink", "armar6").orientation_cost == 3.0
     assert stack.settings("qp", "armar3").orientation_cost == 2.0

@@ -37,6 +37,8 @@ class Stack:
         criteria: Human-likeness criteria added to the stack (paper names).
         gamma: Criterion name -> scaling weight overriding the criterion's Table II gamma.
         solvers: Solver name -> settings overrides (field name -> value).
+        robots: Solver name -> robot name -> that robot's overrides over the solver's
+            (``[<solver>.robot.<name>]``).
     """
 
     name: str
@@ -44,28 +46,24 @@ class Stack:
     criteria: tuple[str, ...] = ()
     gamma: Mapping[str, float] = field(default_factory=dict)
     solvers: Mapping[str, Mapping[str, object]] = field(default_factory=dict)
+    robots: Mapping[str, Mapping[str, Mapping[str, object]]] = field(default_factory=dict)
 
     def with_criteria(self, criteria: Sequence[str]) -> Stack:
         """The same stack with other criteria."""
         _check_criteria(tuple(criteria), self.name)
         return dataclasses.replace(self, criteria=tuple(criteria))
 
-    def robots(self, solver: str) -> tuple[str, ...]:
-        """The robots with their own table for ``solver`` (``[<solver>.robot.<name>]``)."""
-        return tuple(self.solvers.get(solver, {}).get(ROBOT_TABLE, {}))  # type: ignore[arg-type]
-
     def settings(self, solver: str, robot: str | None = None):
         """The settings object of ``solver`` (``qp``, ``jv``, ``slsqp``) for this stack; with
         ``robot`` (a robot's ``name``), its ``[<solver>.robot.<name>]`` table over the solver's."""
         cls = settings_class(solver)
         # [mink] is the QP on mink: it starts from the [qp] table
-        tables = [self.solvers.get("qp", {})] if solver == "mink" else []
-        tables.append(self.solvers.get(solver, {}))
+        layers = ("qp", solver) if solver == "mink" else (solver,)
         table: dict[str, object] = {}
-        for t in tables:
-            table |= {k: v for k, v in t.items() if k != ROBOT_TABLE}
-        for t in tables:
-            table |= t.get(ROBOT_TABLE, {}).get(robot, {})  # type: ignore[attr-defined]
+        for s in layers:
+            table |= self.solvers.get(s, {})
+        for s in layers:  # the robot's own values over every solver table's
+            table |= self.robots.get(s, {}).get(robot, {}) if robot is not None else {}
         solver_gamma: Mapping[str, float] = table.pop("gamma", {})  # type: ignore[assignment]
         gamma = MappingProxyType({**cls().gamma, **self.gamma, **solver_gamma})  # onto the solver's own
         return cls(criteria=self.criteria, scenario=self.scenario, gamma=gamma, **table)
@@ -110,7 +108,7 @@ def _parse(raw: dict, path: Path) -> Stack:
         raise SettingsError(f'{path}: criteria must be a list of names, e.g. ["SYN", "HJA_r"]')
     _check_criteria(tuple(criteria), path)
     gamma = _gamma(raw.get("gamma", {}), path, "gamma")
-    solvers = {}
+    solvers, robots = {}, {}
     for solver in (s for s in SOLVER_TABLES if s in raw):
         table = raw[solver]
         if not isinstance(table, dict):
@@ -118,20 +116,22 @@ def _parse(raw: dict, path: Path) -> Stack:
         fields = {f.name: f for f in dataclasses.fields(settings_class(solver))}
         allowed = set(fields) - {"criteria", "scenario"}
         _check_keys(table, allowed | {ROBOT_TABLE}, path, f"[{solver}]")
-        parsed = {k: _setting(solver, k, v, fields, path) for k, v in table.items() if k != ROBOT_TABLE}
-        robots = table.get(ROBOT_TABLE, {})
-        if not isinstance(robots, dict) or not all(isinstance(t, dict) for t in robots.values()):
+        solvers[solver] = MappingProxyType(
+            {k: _setting(solver, k, v, fields, path) for k, v in table.items() if k != ROBOT_TABLE}
+        )
+        own = table.get(ROBOT_TABLE, {})
+        if not isinstance(own, dict) or not all(isinstance(t, dict) for t in own.values()):
             raise SettingsError(f"{path}: [{solver}.{ROBOT_TABLE}] must hold one table per robot name")
-        by_robot = {}
-        for robot, overrides in robots.items():
-            where = f"[{solver}.{ROBOT_TABLE}.{robot}]"
-            _check_keys(overrides, allowed - {"gamma"}, path, where)
-            by_robot[robot] = MappingProxyType(
-                {k: _setting(solver, k, v, fields, path) for k, v in overrides.items()}
-            )
-        if by_robot:
-            parsed[ROBOT_TABLE] = MappingProxyType(by_robot)
-        solvers[solver] = MappingProxyType(parsed)
+        for robot, overrides in own.items():
+            _check_keys(overrides, allowed - {"gamma"}, path, f"[{solver}.{ROBOT_TABLE}.{robot}]")
+        robots[solver] = MappingProxyType(
+            {
+                robot: MappingProxyType(
+                    {k: _setting(solver, k, v, fields, path) for k, v in overrides.items()}
+                )
+                for robot, overrides in own.items()
+            }
+        )
     name = raw.get("name", path.stem)
     if not isinstance(name, str) or not name.strip():
         raise SettingsError(f"{path}: name must be text, got {name!r}")
@@ -141,11 +141,12 @@ def _parse(raw: dict, path: Path) -> Stack:
         criteria=tuple(criteria),
         gamma=gamma,
         solvers=MappingProxyType(solvers),
+        robots=MappingProxyType(robots),
     )
     for solver in SOLVER_TABLES:  # refuse bad values now, naming the file, not when a solver starts
         try:
             stack.settings(solver)
-            for robot in stack.robots(solver):
+            for robot in stack.robots.get(solver, {}):
                 stack.settings(solver, robot)
         except SettingsError as e:
             owner = f"{settings_class(solver).__name__}."
