@@ -292,6 +292,37 @@ def test_a_hand_turned_away_from_its_target_is_warned_about():
         assert [note.split(" (out of")[0] for note in notes] == (expected if scenario == "pose" else [])
 
 
+@pytest.mark.parametrize("angle", [8.0, 17.0, 29.0])
+def test_a_hand_turned_a_little_in_every_frame_is_warned_about(angle):
+    """A hand turned less than 30 deg but in every frame (ARMAR-6's SLSQP left hand on the Cut
+    take, 17 deg) is warned about once its median passes 10 deg; the other hand, on target, not."""
+    n = 40
+    pos, rot = np.zeros((n, 2, 3)), np.broadcast_to(np.eye(3), (n, 2, 3, 3))
+    turned = rot.copy()
+    c, s = np.cos(np.radians(angle)), np.sin(np.radians(angle))
+    turned[:, 1] = [[1, 0, 0], [0, c, -s], [0, s, c]]  # right hand about x in every frame
+    traj = SimpleNamespace(
+        n_frames=n,
+        solver="qp",
+        tcp_pos=pos,
+        tcp_rot=turned,
+        targets=SimpleNamespace(pos=pos, rot=rot),
+        diagnostics=SimpleNamespace(n_failed=0, n_unconverged=0),
+    )
+    ev = SimpleNamespace(
+        collisions=np.zeros(n, bool),
+        max_speed_ratio=1.0,
+        scenario="pose",
+        controller=_checks(n),
+        **_errors(traj),
+    )
+    notes = [note for note in run_warnings(traj, SimpleNamespace(rate=100.0), ev, 100.0) if "turned" in note]
+    expected = (
+        [f"right hand turned {angle:.0f}° from its target's orientation (median)"] if angle > 10 else []
+    )
+    assert [note.split(", ")[0] for note in notes] == expected
+
+
 # --- 3. progress -------------------------------------------------------------------------------
 
 

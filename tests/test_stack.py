@@ -56,6 +56,21 @@ def test_a_robot_table_overrides_the_solver_table_for_that_robot_alone(tmp_path)
     )
 
 
+def test_a_robot_table_named_like_the_robot_but_misspelt_is_noted(tmp_path):
+    """A table for ``armar7`` on an ARMAR-6 run is left unused with a note (a typo, likely); one
+    for another robot (``dual_panda``) or for the robot itself says nothing."""
+    path = tmp_path / "mine.toml"
+    path.write_text(
+        "[qp.robot.armar7]\norientation_cost = 3.0\n[qp.robot.dual_panda]\norientation_cost = 4.0\n"
+    )
+    stack = load_stack(path)
+    notes = stack.near_misses("qp", "armar6")
+    assert len(notes) == 1 and "[qp.robot.armar7] is not used for robot 'armar6'" in notes[0]
+    assert stack.near_misses("mink", "armar6") == notes  # the mink stack starts from [qp]
+    assert stack.near_misses("qp", "dual_panda") == [] and stack.near_misses("slsqp", "armar6") == []
+    assert stack.settings("qp", "armar6").orientation_cost == stack.settings("qp").orientation_cost
+
+
 def test_a_run_reads_its_robot_s_table():
     """The pipeline gives the solver the stack's settings for the robot it retargets to."""
     from hlik.pipeline import RunSpec, solver_settings

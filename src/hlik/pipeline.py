@@ -236,7 +236,7 @@ def run(
         motion = read_motion(spec, robot)
     if learned is None:
         learned = learn(robot, spec.corpus, progress=_counter(progress, f"learning {robot.title}'s criteria"))
-    notes = [*motion.notes, *learned.notes]
+    notes = [*motion.notes, *learned.notes, *stack.near_misses(spec.solver, robot.name)]
     tried: tuple[Candidate, ...] = ()
     if placement is None:
         placement, tried, placed = place(spec, robot, motion, learned, scenario, progress)

@@ -17,7 +17,7 @@ import numpy as np
 
 from hlik.criteria import registry
 from hlik.util.errors import HlikError, SettingsError
-from hlik.util.tomlfile import read_toml
+from hlik.util.tomlfile import read_toml, unknown_key
 
 # Sec. V: functional criteria and their mid-points, per scenario.
 FUNCTIONAL_X0: Mapping[str, Mapping[str, float]] = MappingProxyType(
@@ -108,6 +108,8 @@ def load_metric(path: Path) -> Metric:
     """
     path = Path(path)
     raw = read_toml(path, "metric")
+    if problem := unknown_key(raw, ("source", "weights", "x0"), "the top-level table"):
+        raise HlikError(f"{path}: {problem}")
     names = registry.human_likeness()
     tables = {}
     for key in ("weights", "x0"):

@@ -37,11 +37,13 @@ import numpy as np
 
 from hlik.human.motion import RATE_RANGE
 from hlik.util.errors import HlikError, MotionFormatError
-from hlik.util.tomlfile import read_toml
+from hlik.util.tomlfile import read_toml, unknown_key
 
 SIDES = ("left", "right")
 ARM_POINTS = ("shoulder", "elbow", "wrist")
 HAND_POINTS = ("index", "pinky")
+# the keys of a keypoint description (README "Your robot, your motion")
+KEYS = ("data", "keypoints", "array", "names", "rate", "lowpass", "floor", "units", "up")
 UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001, "in": 0.0254}
 # Upper arm plus forearm of adults, m: a sum outside it means the units are not what they were said
 # to be (about 0.45-0.65 m for heights of 1.45-2.0 m, with room for children and fitting noise).
@@ -106,6 +108,8 @@ def read_keypoints(path: Path) -> Keypoints:
         desc = read_toml(path, "keypoint description")
     except HlikError as e:
         raise MotionFormatError(path, str(e).split(": ", 1)[-1]) from None
+    if problem := unknown_key(desc, KEYS, "the top-level table"):
+        raise MotionFormatError(path, problem)
     data_name = desc.get("data")
     if not isinstance(data_name, str):
         raise MotionFormatError(path, 'missing key data = "<file>" naming the keypoint array')

@@ -156,6 +156,23 @@ class _Reader:
 
     # --- the two formats --------------------------------------------------------------------------
 
+    def scene_objects(self, motions: list[tuple[str, Element]], times: np.ndarray) -> dict:
+        """The readable objects among the MMM 2.0 ``motions`` (name, element) at ``times``; a
+        second motion of one name, or one that cannot be read, is left out with a note."""
+        objects: dict = {}
+        for key, m in motions:
+            if key in objects:
+                self.note(f"object {key!r}: a second motion of that name, left out")
+                continue
+            try:
+                obj = self.scene_object(key, m, times)
+            except MotionFormatError as e:
+                self.note(f"{e.problem}; object left out")
+                continue
+            if obj is not None:
+                objects[key] = obj
+        return objects
+
     def v2(self, motions: list[Element]) -> HumanMotion:
         human, others = None, []
         for k, m in enumerate(motions):
@@ -192,18 +209,7 @@ class _Reader:
         markers: dict[str, np.ndarray] = {}
         for s in (s for s in sensors if s.get("type") == "MoCapMarker"):
             markers.update(self.markers(s, who, times))
-        objects = {}
-        for key, m in others:
-            if key in objects:
-                self.note(f"object {key!r}: a second motion of that name, left out")
-                continue
-            try:
-                obj = self.scene_object(key, m, times)
-            except MotionFormatError as e:
-                self.note(f"{e.problem}; object left out")
-                continue
-            if obj is not None:
-                objects[key] = obj
+        objects = self.scene_objects(others, times)
         height, mass = self.subject(human.find("Model/ModelProcessorConfig"), who)
         return self.finish(
             who,

@@ -43,6 +43,24 @@ class Camera:
         )
 
 
+def _score_views(criteria: tuple[str, ...], unified: bool, fitted: bool) -> list[rrb.View]:
+    """The score tabs of :func:`blueprint`: m_hl(t) and m_f(t), the criteria by cluster, posture,
+    solver and fit."""
+    scores: list[rrb.View] = [_plot("/plots/unified", "m_hl(t), m_f(t) (1 = best)")] if unified else []
+    others = tuple(c for c in criteria if not any(c in members for members in CLUSTERS.values()))
+    for title, members in [*CLUSTERS.items(), ("other", others)]:
+        shown = [c for c in members if c in criteria]
+        if shown:
+            contents = [f"/plots/metrics/{_entity(c)}" for c in shown]
+            scores.append(_plot("/plots/metrics", f"scores: {title}", contents))
+    if unified:
+        scores.append(_plot("/plots/posture", "posture: elbows, hands ahead of the shoulders; trunk lean"))
+    scores.append(_plot("/plots/solver", "solver: iterations per frame, failed"))
+    if fitted:
+        scores.append(_plot("/plots/fit", "MMM fit: largest elbow/wrist error (m)"))
+    return scores
+
+
 def blueprint(
     robot: Robot | None = None,
     scenario: str = "pose",
@@ -86,19 +104,7 @@ def blueprint(
         rows.append(rrb.Horizontal(*(_plot(f"/plots/{e}", name) for e, name in main)))
         absolute = [(e, f"{e} ({unit}), context") for e, unit in (("fPOS", "m"), ("fORI", "rad"))]
     rows.append(rrb.Horizontal(*(_plot(f"/plots/{e}", name) for e, name in absolute)))
-    scores = [_plot("/plots/unified", "m_hl(t), m_f(t) (1 = best)")] if unified else []
-    others = tuple(c for c in criteria if not any(c in members for members in CLUSTERS.values()))
-    for title, members in [*CLUSTERS.items(), ("other", others)]:
-        shown = [c for c in members if c in criteria]
-        if shown:
-            contents = [f"/plots/metrics/{_entity(c)}" for c in shown]
-            scores.append(_plot("/plots/metrics", f"scores: {title}", contents))
-    if unified:
-        scores.append(_plot("/plots/posture", "posture: elbows, hands ahead of the shoulders; trunk lean"))
-    scores.append(_plot("/plots/solver", "solver: iterations per frame, failed"))
-    if fitted:
-        scores.append(_plot("/plots/fit", "MMM fit: largest elbow/wrist error (m)"))
-    rows.append(rrb.Tabs(*scores, active_tab=0))
+    rows.append(rrb.Tabs(*_score_views(criteria, unified, fitted), active_tab=0))
     return rrb.Blueprint(
         rrb.Horizontal(
             left, rrb.Vertical(*rows, row_shares=[3] + [2] * (len(rows) - 1)), column_shares=[3, 2]

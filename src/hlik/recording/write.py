@@ -73,10 +73,7 @@ def write_recording(
             ``corpus``, ``scenario``, ...); scenario ``relative`` (or the evaluation's) makes
             fPOS_off / fORI_off the main tracking plots.
     """
-    if layout not in LAYOUTS:
-        raise ValueError(f"layout must be one of {LAYOUTS}, got {layout!r}")
-    if chunk_frames < 1:
-        raise ValueError(f"chunk_frames must be positive, got {chunk_frames}")
+    _check_arguments(layout, chunk_frames)
     curves = _score_curves(trajectory, metrics, evaluation)
     info = dict(info or {})
     scenario = evaluation.scenario if evaluation is not None else info.get("scenario", "pose")
@@ -99,14 +96,25 @@ def write_recording(
             rec.set_log_time_enabled(False)
             rec.save(tmp, default_blueprint=view)
             _log(rec, trajectory, robot, layout, curves, chunk_frames, scenario, evaluation, fit)
-            text = summary(trajectory, robot, evaluation, info)
-            rec.log("/result", rr.TextDocument(text, media_type=rr.MediaType.MARKDOWN), static=True)
-            if evaluation is not None:
-                exact = json.dumps(evaluation.to_json(), indent=2)
-                rec.log("/result/json", rr.TextDocument(exact, media_type=rr.MediaType.TEXT), static=True)
+            _log_result(rec, summary(trajectory, robot, evaluation, info), evaluation)
         finally:
             rec.disconnect()  # writes the footer; the file is complete only now
     return path
+
+
+def _check_arguments(layout: str, chunk_frames: int) -> None:
+    if layout not in LAYOUTS:
+        raise ValueError(f"layout must be one of {LAYOUTS}, got {layout!r}")
+    if chunk_frames < 1:
+        raise ValueError(f"chunk_frames must be positive, got {chunk_frames}")
+
+
+def _log_result(rec: rr.RecordingStream, text: str, evaluation: Evaluation | None) -> None:
+    """The text panel ``/result`` (``text``, Markdown) and the exact scores beside it (JSON)."""
+    rec.log("/result", rr.TextDocument(text, media_type=rr.MediaType.MARKDOWN), static=True)
+    if evaluation is not None:
+        exact = json.dumps(evaluation.to_json(), indent=2)
+        rec.log("/result/json", rr.TextDocument(exact, media_type=rr.MediaType.TEXT), static=True)
 
 
 def _score_curves(

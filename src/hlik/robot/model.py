@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import difflib
 import math
 import re
 from collections.abc import Mapping
@@ -13,6 +14,7 @@ from typing import TYPE_CHECKING
 import mujoco
 import numpy as np
 
+from hlik.human.kinematics import human_model
 from hlik.robot.mapping import JointMapping
 from hlik.robot.model_file import COLLISION_GROUP as COLLISION_GROUP  # re-exported: models' geom groups
 from hlik.robot.model_file import VISUAL_GROUP as VISUAL_GROUP
@@ -20,7 +22,7 @@ from hlik.robot.model_file import ModelFile, compile_model
 from hlik.util.errors import HlikError, MotionFormatError, RobotError
 from hlik.util.paths import robots_dir
 from hlik.util.spatial import site_poses
-from hlik.util.tomlfile import read_toml
+from hlik.util.tomlfile import read_toml, unknown_key
 
 if TYPE_CHECKING:  # scipy comes with the motion; `hlik robots` needs none
     from hlik.human.motion import HumanMotion
@@ -221,7 +223,37 @@ def load_robot(name: str, need_mapping: bool = True) -> Robot:
     return _build(path, desc, need_mapping)
 
 
+# the keys of a robot description and of its tables with fixed keys ([home], [sites], [mapping]
+# and the limit tables are keyed by the model's joints and sites, checked where they are read)
+KEYS = (
+    "name", "title", "model", "mjcf", "extra_joints", "unlimited_joints", "placement", "subject_scale",
+    "arms", "home", "manipulability", "velocity_limits", "acceleration_limits", "jerk_limits",
+    "effort_limits", "mapping", "collision", "base", "sites", "package_dirs",
+)  # fmt: skip
+TABLE_KEYS = {
+    "arms": SIDES,
+    "arms.left": ("joints",),
+    "arms.right": ("joints",),
+    "manipulability": ("site", "joints"),
+    "collision": ("exclude",),
+    "base": ("pos", "rpy"),
+}
+
+
+def _check_keys(path: Path, desc: dict) -> None:
+    """Refuse a key the description does not know, naming its table and the closest known key."""
+    if problem := unknown_key(desc, KEYS, "the top-level table"):
+        raise RobotError(f"{path}: {problem}")
+    for where, allowed in TABLE_KEYS.items():
+        table: object = desc
+        for part in where.split("."):
+            table = table.get(part, {}) if isinstance(table, dict) else {}
+        if isinstance(table, dict) and (problem := unknown_key(table, allowed, f"[{where}]")):
+            raise RobotError(f"{path}: {problem}")
+
+
 def _build(path: Path, desc: dict, need_mapping: bool = True) -> Robot:
+    _check_keys(path, desc)
     name = _text(path, desc, "name", path.stem)
     if not NAME.fullmatch(name):
         raise RobotError(f"{path}: name {name!r} must be letters, digits, '_' or '-' (it names files)")
@@ -250,6 +282,7 @@ def _build(path: Path, desc: dict, need_mapping: bool = True) -> Robot:
         raise RobotError(f"{mjcf}: robot joints must all be hinges")
     manip_site, manip_joints = _manipulability(path, desc, model, mjcf, names, arms)
     limited = model.jnt_limited.astype(bool)
+    _check_unlimited(path, desc, names, limited)
     lower = np.where(limited, model.jnt_range[:, 0], -np.inf)
     upper = np.where(limited, model.jnt_range[:, 1], np.inf)
     home = _home(path, home_angles, names, compiled.welded, lower, upper)
@@ -333,6 +366,13 @@ def _manipulability(
     for side in SIDES:
         for site in SITES:
             site_name = f"{side}_{manip_site if site == 'manipulability' else site}"
+            if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, site_name) < 0 and site == "manipulability":
+                sites = [model.site(i).name.removeprefix(f"{side}_") for i in range(model.nsite)]
+                close = difflib.get_close_matches(manip_site, sites, n=1)
+                hint = f" (did you mean {close[0]!r}?)" if close else ""
+                raise RobotError(
+                    f"{path}: [manipulability] site {manip_site!r}: {mjcf.name} has no site {site_name}{hint}"
+                )
             if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, site_name) < 0:
                 raise RobotError(f"{mjcf}: missing site {site_name}")
     arm_set = {j for s in SIDES for j in arms[s]}
@@ -422,6 +462,7 @@ def _mapping(path: Path, desc: dict, names: tuple[str, ...]) -> JointMapping:
                 raise RobotError(f"{path}: {where}: unknown key {extra[0]!r}; choose from: mmm, a, b, offset")
             if "mmm" in entry and not isinstance(entry["mmm"], str):
                 raise RobotError(f"{path}: {where} mmm must be an MMM joint name, got {entry['mmm']!r}")
+            _check_mmm(path, entry.get("mmm"), f"{where} mmm")
             for key in ("a", "b"):
                 _number(path, entry.get(key, 0.0), f"{where} {key}")
             offset = entry.get("offset")
@@ -429,12 +470,39 @@ def _mapping(path: Path, desc: dict, names: tuple[str, ...]) -> JointMapping:
                 continue
             if not isinstance(offset, dict) or not isinstance(offset.get("mmm"), str):
                 raise RobotError(f"{path}: {where} offset must be a table {{ mmm = ..., gain = ... }}")
+            _check_mmm(path, offset["mmm"], f"{where} offset mmm")
             _number(path, offset.get("gain"), f"{where} offset gain")
             if "fold" in offset:
                 fold = offset["fold"]
                 if isinstance(fold, bool) or not isinstance(fold, int | float) or math.isnan(fold):
                     raise RobotError(f"{path}: {where} offset fold must be a number, got {fold!r}")
     return JointMapping.from_table(table)
+
+
+def _check_mmm(path: Path, joint: str | None, where: str) -> None:
+    """Refuse an MMM joint name the MMM model does not have (before any motion is read, which
+    would otherwise be blamed for lacking it)."""
+    model = human_model(1.0)
+    known = [model.joint(i).name for i in range(model.njnt)]
+    if joint is not None and joint not in known:
+        close = difflib.get_close_matches(joint, known, n=1)
+        hint = f" (did you mean {close[0]!r}?)" if close else ""
+        raise RobotError(f"{path}: {where}: {joint!r} is not a joint of the MMM model{hint}")
+
+
+def _check_unlimited(path: Path, desc: dict, names: tuple[str, ...], limited: np.ndarray) -> None:
+    """``unlimited_joints``, where given, must be the model's joints without a range (the model
+    decides; the list says what its author expects, so a model that disagrees is refused)."""
+    if "unlimited_joints" not in desc:
+        return
+    listed = set(_names(path, desc, "unlimited_joints", "the top-level"))
+    free = {n for n, lim in zip(names, limited) if not lim}
+    if listed - free:
+        wrong = ", ".join(sorted(listed - free))
+        raise RobotError(f"{path}: unlimited_joints lists {wrong}, which the model limits (its range)")
+    if free - listed:
+        wrong = ", ".join(sorted(free - listed))
+        raise RobotError(f"{path}: unlimited_joints leaves out {wrong}, which the model leaves unlimited")
 
 
 def _subject_scale(path: Path, desc: dict) -> float | str:

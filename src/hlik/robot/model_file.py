@@ -138,13 +138,7 @@ def compile_model(
     fit_collision_shapes(spec, model)
     for geom in spec.geoms:
         geom.group = COLLISION_GROUP if geom.contype or geom.conaffinity else VISUAL_GROUP
-    for pair in exclude:
-        if not (isinstance(pair, list | tuple) and len(pair) == 2 and all(isinstance(b, str) for b in pair)):
-            raise RobotError(f"{toml}: [collision] exclude entries must be [body, body] pairs, got {pair!r}")
-        for body in pair:
-            if spec.body(body) is None:
-                raise RobotError(f"{toml}: [collision] exclude names body {body!r}, not in {path.name}")
-        spec.add_exclude(bodyname1=pair[0], bodyname2=pair[1])
+    _add_excludes(spec, toml, path, exclude)
     model = _compile(spec, path)
     at_home = [home.get(model.joint(i).name, 0.0) for i in range(model.njnt)]
     touching = sorted({*_touching_at_home(model, at_home), *_near_by_construction(model, at_home)})
@@ -153,6 +147,17 @@ def compile_model(
     if touching:
         model = _compile(spec, path)
     return ModelFile(path, model, welded, limits["velocity"], limits["effort"])
+
+
+def _add_excludes(spec: mujoco.MjSpec, toml: Path, path: Path, exclude: Sequence[Sequence[str]]) -> None:
+    """The ``[collision] exclude`` pairs of ``toml`` added to ``spec`` (of the model ``path``)."""
+    for pair in exclude:
+        if not (isinstance(pair, list | tuple) and len(pair) == 2 and all(isinstance(b, str) for b in pair)):
+            raise RobotError(f"{toml}: [collision] exclude entries must be [body, body] pairs, got {pair!r}")
+        for body in pair:
+            if spec.body(body) is None:
+                raise RobotError(f"{toml}: [collision] exclude names body {body!r}, not in {path.name}")
+        spec.add_exclude(bodyname1=pair[0], bodyname2=pair[1])
 
 
 def _compile(spec: mujoco.MjSpec, path: Path) -> mujoco.MjModel:

@@ -150,6 +150,12 @@ def check_settings(
         value = getattr(settings, key)
         if not (isinstance(value, numbers.Integral) and not isinstance(value, bool) and int(value) >= 1):
             fail(key, "a whole number >= 1")
+    _check_choices(settings, owner)
+
+
+def _check_choices(settings: object, owner: str) -> None:
+    """The parts of :func:`check_settings` that are not one number: scenario, gamma table and the
+    collision distances' order."""
     scenario = getattr(settings, "scenario", "pose")
     if scenario not in ("pose", "relative"):
         raise SettingsError(f"{owner}.scenario must be 'pose' or 'relative', got {scenario!r}")

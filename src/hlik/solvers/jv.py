@@ -357,6 +357,23 @@ def secondary(
     return grad
 
 
+def _step_tries(
+    box: JointBox,
+    q: np.ndarray,
+    max_step: float,
+    data: mujoco.MjData,
+    collision: SelfCollisionLimit | None,
+    hard: tuple[np.ndarray, np.ndarray] | None,
+) -> list[StepConstraints]:
+    """:func:`constrained_steps` of the frame's box with the collision rows at ``q`` (its
+    kinematics in ``data``) and the caller's ``hard`` rows."""
+    a_col, b_col = np.zeros((0, len(q))), np.zeros(0)
+    if collision is not None:
+        a_col, b_col = collision.rows(data)
+    a_hard, b_hard = hard if hard is not None else (None, None)
+    return constrained_steps(box, q, max_step, a_col, b_col, a_hard=a_hard, b_hard=b_hard)
+
+
 def step(
     robot: Robot,
     targets: Sequence[Term],
@@ -413,11 +430,7 @@ def step(
     dq = bound(task + null, settings.max_step)
     # clipped here, not only by iterate: the collision rows are checked on the step taken
     dq = box.clip(q + dq) - q
-    a_col, b_col = np.zeros((0, robot.dof)), np.zeros(0)
-    if collision is not None:
-        a_col, b_col = collision.rows(data)  # q's kinematics in data
-    a_hard, b_hard = hard if hard is not None else (None, None)
-    tries = constrained_steps(box, q, settings.max_step, a_col, b_col, a_hard=a_hard, b_hard=b_hard)
+    tries = _step_tries(box, q, settings.max_step, data, collision, hard)
     rows, rhs = tries[0].rows, tries[0].bound  # every row: the torque limits and the collision rows
     constrained, missed = memory.constrained, memory.missed
     if len(rhs) and np.all(np.isfinite(dq)) and (constrained or np.any(rows @ dq > rhs + 1e-9)):

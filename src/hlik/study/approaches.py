@@ -10,7 +10,7 @@ from pathlib import Path
 from hlik.criteria import registry
 from hlik.solvers import SOLVER_NAMES, SPECS
 from hlik.util.errors import HlikError
-from hlik.util.tomlfile import read_toml
+from hlik.util.tomlfile import read_toml, unknown_key
 
 PAPER = Path(__file__).with_name("paper.toml")
 BUNDLED = ("paper", "quick")  # approach files shipped beside this module, usable by name
@@ -65,6 +65,15 @@ def load_approaches(path: str | Path = PAPER) -> tuple[Approach, ...]:
         raise HlikError(f'{path}: exclude must be a list of approach names or patterns, e.g. ["jv+MJE"]')
     stacks = {"pose": "paper_opt", "relative": "relative_pose"} | dict(raw.get("stacks", {}))
     corr, ev = raw.get("correlation", {}), raw.get("evaluation", {})
+    for where, table, allowed in (
+        ("[correlation]", corr, ("solvers", "single_criteria")),
+        ("[evaluation]", ev, ("solvers", "pairs", "scenarios")),
+        ("[stacks]", raw.get("stacks", {}), ("pose", "relative")),
+    ):
+        if not isinstance(table, dict):
+            raise HlikError(f"{path}: {where} must be a table")
+        if problem := unknown_key(table, allowed, where):
+            raise HlikError(f"{path}: {problem}")
     single = corr.get("single_criteria", False)
     if not isinstance(single, bool):
         raise HlikError(f"{path}: correlation.single_criteria must be true or false")

@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
+import difflib
 import sys
-from collections.abc import Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 
 from hlik.util.errors import SettingsError
@@ -40,3 +41,25 @@ def read_toml(path: Path, what: str, bundled: Sequence[str] = ()) -> dict:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
         raise SettingsError(f"{path}: not valid TOML ({e})") from None
+
+
+def unknown_key(
+    table: Mapping, allowed: Iterable[str], where: str, renamed: Mapping[str, str] | None = None
+) -> str | None:
+    """None if every key of ``table`` is ``allowed``; else the problem with the first unknown one,
+    e.g. ``"unknown key 'placment' at the top level (did you mean 'placement'?); choose from: ..."``
+    (``where`` names the table), or the key's new name where ``renamed`` (old -> new) knows it.
+    Every TOML reader refuses such a key with its file, since a misspelt key would otherwise leave
+    its default silently in place.
+    """
+    allowed = sorted(allowed)
+    unknown = sorted(set(table) - set(allowed), key=str)
+    if not unknown:
+        return None
+    key = unknown[0]
+    if renamed and renamed.get(key) in allowed:
+        hint = f" (now {renamed[key]!r})"
+    else:
+        close = difflib.get_close_matches(str(key), allowed, n=1)
+        hint = f" (did you mean {close[0]!r}?)" if close else ""
+    return f"unknown key {key!r} in {where}{hint}; choose from: {', '.join(allowed)}"
