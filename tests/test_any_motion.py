@@ -85,9 +85,21 @@ def test_human_assembly_keypoints_are_fitted(tmp_path):
 
 
 def test_keypoints_with_nan_are_interpolated_never_passed_on(tmp_path):
-    motion = load_motion(_assembly(tmp_path, "human_assembly/Task3/Human2/trial2.txt"), rate=100)
+    table = np.loadtxt(data_file("human_assembly/Task1/Human1/trial1.txt"))
+    table[100:104, 3:6] = np.nan  # the right wrist lost for four frames, as Task3/Human2/trial2's
+    np.savetxt(tmp_path / "gaps.txt", table)
+    desc = tmp_path / "take.toml"
+    desc.write_text(HUMAN_ASSEMBLY.format(data=tmp_path / "gaps.txt", extra=""))
+    motion = load_motion(desc, rate=100)
     assert any("NaN keypoints, interpolated" in n for n in motion.notes)
     assert np.all(np.isfinite(motion.joints)) and np.all(np.isfinite(motion.root_position))
+
+
+def test_a_keypoint_never_detected_is_refused_naming_it(tmp_path):
+    """Task3/Human2/trial2 of the LEGO data has its right shoulder at 0 0 0 in every frame (and
+    the left one still): fitted, it made a subject with one shoulder at the camera."""
+    with pytest.raises(MotionFormatError, match="keypoint right_shoulder is never detected"):
+        load_motion(_assembly(tmp_path, "human_assembly/Task3/Human2/trial2.txt"))
 
 
 def test_keypoints_in_wrong_units_are_caught(tmp_path):

@@ -14,7 +14,7 @@ from typer.testing import CliRunner
 from conftest import G1, require_g1
 from hlik.cli import app
 from hlik.robot.collision import collision_pairs
-from hlik.robot.model import COLLISION_GROUP, SIDES, SITES, load_robot, self_contacts
+from hlik.robot.model import COLLISION_GROUP, SIDES, SITES, load_robot, self_contacts, tcp_poses
 from hlik.util.errors import RobotError
 from hlik.util.paths import robots_dir
 from hlik.util.spatial import site_poses
@@ -239,3 +239,44 @@ def test_auto_scale_keeps_the_subjects_reach_about_the_robots_shoulders(g1, cut_
         and "feet 0.7" in note
         and "below the floor" in note
     )
+
+
+def _coupled_armar3(tmp_path: Path, joint1: str, joint2: str) -> Path:
+    """An ARMAR-III copy with two head joints (welded: not in [arms]) and a joint equality, what
+    MuJoCo makes of a URDF ``<mimic>`` (google-deepmind/mujoco #3527)."""
+    path = _armar3_copy(tmp_path, lambda t: t)
+    xml = tmp_path / "mjcf" / "armar3.xml"
+    text = xml.read_text()
+    head = '<body name="head" pos="0 0 0.118">'
+    text = text.replace(
+        head, head + '<joint name="HeadTilt" axis="1 0 0"/><joint name="HeadPan" axis="0 0 1"/>'
+    )
+    text = text.replace(
+        "</mujoco>", f'<equality><joint joint1="{joint1}" joint2="{joint2}"/></equality></mujoco>'
+    )
+    xml.write_text(text)
+    return path
+
+
+def test_a_coupling_between_welded_joints_goes_with_them(tmp_path):
+    robot = load_robot(str(_coupled_armar3(tmp_path, "HeadTilt", "HeadPan")))
+    bundled = load_robot("armar3")
+    assert robot.joint_names == bundled.joint_names and robot.model.neq == 0
+    np.testing.assert_allclose(
+        tcp_poses(robot, robot.home[None])[0], tcp_poses(bundled, bundled.home[None])[0]
+    )
+
+
+@pytest.mark.parametrize(
+    ("joint1", "joint2", "solved"),
+    [("Wrist2_L", "Wrist1_L", "Wrist2_L, Wrist1_L"), ("HeadTilt", "HipYaw", "HipYaw")],
+)
+def test_a_coupling_of_a_solved_joint_is_refused_naming_it(tmp_path, joint1, joint2, solved):
+    """The solvers move joints independently: a mimic joint they solve ran with exit 0 and the pair
+    0.89 rad apart (G1 wrists); one they weld failed in MuJoCo's words."""
+    path = _coupled_armar3(tmp_path, joint1, joint2)
+    with pytest.raises(
+        RobotError, match=f"joints {joint1} and {joint2} are coupled .* hlik solves {solved}:"
+    ) as e:
+        load_robot(str(path))
+    assert str(e.value).startswith(str(path)) and "\n" not in str(e.value)

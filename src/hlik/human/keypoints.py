@@ -35,6 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
+from hlik.human import cleanup
 from hlik.human.motion import RATE_RANGE
 from hlik.util.errors import HlikError, MotionFormatError
 from hlik.util.tomlfile import read_toml, unknown_key
@@ -298,6 +299,17 @@ def _assemble(
 
     ``skeleton_up``: a BVH skeleton's up axis (``up`` in ``desc`` overrides it)."""
     notes = []
+    points, gone = cleanup.dropouts(points)
+    never = [n for n, g in gone.items() if g.all()]
+    if never:
+        raise MotionFormatError(
+            path, f"{data.name}: keypoint {never[0]} is never detected (0 0 0 or -1 -1 -1 in every frame)"
+        )
+    if gone:
+        said = ", ".join(f"{n} in {g.sum()}" for n, g in gone.items())
+        notes.append(
+            f"{path}: {data.name}: undetected keypoints (0 0 0 or -1 -1 -1) taken as gaps: {said} frames"
+        )
     stacked = np.stack(list(points.values()))  # (K, T, 3)
     bad = ~np.all(np.isfinite(stacked), axis=(0, 2))
     if bad.all():
@@ -319,6 +331,7 @@ def _assemble(
     arrays = {k: (v * scale) @ rot.T for k, v in points.items()}
     lift = _floor(path, desc, arrays, scale, notes)
     arrays = {k: v + [0.0, 0.0, lift] for k, v in arrays.items()}
+    arrays = _repair(path, data, times, arrays, notes)
     cutoff = desc.get("lowpass")
     if cutoff is not None:
         arrays = _lowpass(
@@ -341,6 +354,41 @@ def _assemble(
         source=path,
         notes=tuple(notes),
     )
+
+
+def _repair(
+    path: Path, data: Path, times: np.ndarray, arrays: dict[str, np.ndarray], notes: list[str]
+) -> dict[str, np.ndarray]:
+    """Swapped sides swapped back, misdetected arms (a limb off its length) filled from the frames
+    around them, and a warning when the sides look mirrored for the whole take
+    (:mod:`hlik.human.cleanup`); notes added to ``notes``."""
+    if not all(f"{s}_{p}" in arrays for s in SIDES for p in ARM_POINTS):
+        return arrays
+    arrays, fixed = cleanup.repair_swaps(arrays, times)
+    notes += [f"{path}: {data.name}: {n}" for n in fixed]
+    for side, bad in cleanup.limb_outliers(arrays).items():
+        if bad.mean() > 0.2:
+            raise MotionFormatError(
+                path,
+                f"{data.name}: the {side} arm's limbs change length by more than "
+                f"{cleanup.LIMB_TOLERANCE:.0%} in {bad.sum()} of {len(bad)} frames: not one person's arm "
+                "(wrong [keypoints] columns, or 2D points?)",
+            )
+        good = np.flatnonzero(~bad)
+        for key in [k for k in arrays if k.startswith(side)]:
+            value = arrays[key]
+            arrays[key] = np.stack([np.interp(times, times[good], value[good, k]) for k in range(3)], axis=1)
+        notes.append(
+            f"{path}: {data.name}: {side} arm misdetected (a limb off its length by more than "
+            f"{cleanup.LIMB_TOLERANCE:.0%}) at {cleanup.spans(bad, times)}; filled from the frames around"
+        )
+    ahead = cleanup.hands_behind(arrays)
+    if ahead < -0.05:
+        notes.append(
+            f"{path}: {data.name}: the hands work {-100 * ahead:.0f} cm behind the shoulders (median) as the "
+            "keypoints are labelled: left and right may be mirrored; check the [keypoints] table"
+        )
+    return arrays
 
 
 # Shoulder heights (m) of a person standing or sitting on the floor at z = 0; outside them the file's

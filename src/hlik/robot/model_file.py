@@ -133,6 +133,7 @@ def compile_model(
     if unknown:
         raise RobotError(f"{toml}: joints not in the model {path.name}: {', '.join(unknown)}")
     _place_base(spec, model, toml, base)
+    _couplings(spec, toml, set(keep))
     welded = _weld(spec, model, toml, set(keep), home)
     _add_sites(spec, toml, sites)
     fit_collision_shapes(spec, model)
@@ -229,6 +230,30 @@ def _place_base(spec: mujoco.MjSpec, model: mujoco.MjModel, toml: Path, base: Ma
         body.pos = pos + rot.apply(model.body_pos[i])
         body.quat = np.roll((rot * body_rot).as_quat(), 1)
         body.alt.type = mujoco.mjtOrientation.mjORIENTATION_QUAT
+
+
+def _couplings(spec: mujoco.MjSpec, toml: Path, keep: set[str]) -> None:
+    """Joint couplings (an MJCF ``<equality><joint>``, what MuJoCo makes of a URDF ``<mimic>``):
+    hlik's solvers move every joint on its own, so a coupling between two joints they solve, or
+    between one they solve and one they weld, is refused naming both; one between welded joints
+    goes with them (each held at its home angle).
+
+    Raises:
+        RobotError: a coupling that involves a solved joint.
+    """
+    for eq in list(spec.equalities):
+        if eq.type != mujoco.mjtEq.mjEQ_JOINT:
+            continue
+        joints = [n for n in (eq.name1, eq.name2) if n]
+        solved = [n for n in joints if n in keep]
+        if solved:
+            pair = " and ".join(joints) if len(joints) == 2 else f"{joints[0]} (fixed)"
+            raise RobotError(
+                f"{toml}: joints {pair} are coupled in the model (a URDF <mimic> or a joint equality), "
+                f"and hlik solves {', '.join(solved)}: its solvers move joints independently; leave "
+                "them out of [arms] and extra_joints (welded at [home]) or remove the coupling"
+            )
+        spec.delete(eq)
 
 
 def _weld(
