@@ -255,3 +255,16 @@ def test_a_fitted_motion_records_its_keypoints_and_fit_error(tmp_path):
     error = [c for c in chunks if c.entity_path == "/plots/fit/error" and not c.is_static]
     frames = len(np.load(out.with_suffix(".npz"))["times"])
     assert sum(c.to_record_batch().num_rows for c in error) == frames  # a value every frame
+
+
+def test_a_bvh_with_fewer_rows_than_frames_is_refused_at_once(tmp_path):
+    """bvhio never returns from such a file (exporters write them: YanjieZe/GMR #172)."""
+    pytest.importorskip("bvhio")
+    path = tmp_path / "short.bvh"
+    _bvh(path, np.zeros((10, 33)))
+    path.write_text(path.read_text().replace("Frames: 10", "Frames: 12"))
+    with pytest.raises(MotionFormatError, match=r"Frames: 12 but 10 motion rows \(the file ends early\)"):
+        read_bvh(path)
+    path.write_text(path.read_text().replace("Frames: 12", "Frames: 2000000"))
+    with pytest.raises(MotionFormatError, match="2000000 frames, more than hlik's 1000000"):
+        read_bvh(path)

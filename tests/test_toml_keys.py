@@ -149,3 +149,14 @@ def test_an_approach_file_typo_is_refused_in_every_table(tmp_path, table, typo, 
         load_approaches(path)
     if typo != "exclud":
         assert f"did you mean {meant!r}" in str(e.value)
+
+
+def test_a_pair_given_in_both_orders_is_one_approach(tmp_path):
+    from hlik.study.approaches import load_approaches
+
+    path = tmp_path / "a.toml"
+    path.write_text(
+        '[correlation]\nsolvers = ["jm"]\n[evaluation]\nsolvers = ["qp"]\npairs = [["SYN", "HJA_r"], ["HJA_r", "SYN"]]\n'
+    )
+    names = [a.name for a in load_approaches(path) if not a.correlation]
+    assert names.count("qp+SYN+HJA_r") == 1 and "qp+HJA_r+SYN" not in names

@@ -153,3 +153,22 @@ def test_format_1_files_are_refused_with_a_reason(tmp_path, demo):
     np.savez(old, **arrays)
     with pytest.raises(TrajectoryFormatError, match="hlik.trajectory/1.*run hlik run again"):
         load_trajectory(old)
+
+
+def test_format_2_files_are_read_or_named_as_older(tmp_path, demo):
+    """Format 2 gained arrays without a new number: a file of 3's layout marked 2 is read; one
+    written before an array was added is called older, not broken ("missing array")."""
+    traj = retarget(demo.crop(0, 0.1), load_robot("armar3"))
+    path = traj.save(tmp_path / "t.npz")
+    with np.load(path) as z:
+        arrays = {k: z[k] for k in z.files}
+    assert str(arrays["format"]) == "hlik.trajectory/3"
+    arrays["format"] = np.array("hlik.trajectory/2")
+    np.savez(tmp_path / "two.npz", **arrays)
+    np.testing.assert_array_equal(load_trajectory(tmp_path / "two.npz").q, traj.q)
+    del arrays["base_method"]
+    np.savez(tmp_path / "older.npz", **arrays)
+    with pytest.raises(
+        TrajectoryFormatError, match="older hlik.trajectory/2 layout .*'base_method'.*run hlik run"
+    ):
+        load_trajectory(tmp_path / "older.npz")

@@ -3,8 +3,9 @@
 A :class:`Trajectory` keeps what metrics and recordings need without solving again: the robot's
 joint angles and TCP poses, the hand targets, the placement, the human motion (body markers are
 dropped; objects are kept), the human reference the criteria compare to, and the solver's
-per-frame diagnostics. Format 2 added the reference and the diagnostics; format 1 files are
-refused with a message saying so.
+per-frame diagnostics. Format 2 added the reference and the diagnostics, and later arrays without
+a new number; format 3 is that layout, named: format 2 files with it are read, older ones and
+format 1 are refused with a message saying so.
 """
 
 from __future__ import annotations
@@ -25,7 +26,10 @@ from hlik.solvers.base import Diagnostics
 from hlik.util.atomic import atomic_path
 from hlik.util.errors import TrajectoryFormatError
 
-FORMAT = "hlik.trajectory/2"
+FORMAT = "hlik.trajectory/3"
+# format 2 files whose layout is 3's are read; those written before format 2 gained arrays (the
+# placement's method, the diagnostics' solve times, ...) are named as older, not as broken
+OLDER = "hlik.trajectory/2"
 
 
 @dataclass(frozen=True, eq=False)
@@ -96,6 +100,14 @@ def load_trajectory(path: str | Path) -> Trajectory:
         )
     arrays = _read_arrays(path)
     found = str(arrays.get("format", ""))
+    if found == OLDER:
+        lacking = [k for k in _SPEC if k not in arrays]
+        if lacking:
+            raise TrajectoryFormatError(
+                f"{path}: written in an older {OLDER} layout (before array {lacking[0]!r} was added); "
+                "run hlik run again to rewrite it"
+            )
+        found = FORMAT
     if found.startswith("hlik.trajectory/") and found != FORMAT:
         raise TrajectoryFormatError(
             f"{path}: written in {found}, this hlik reads {FORMAT} (which adds the human reference and the "

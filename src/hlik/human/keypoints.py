@@ -29,6 +29,8 @@ knuckles of the index and little finger, which give the hand's orientation (the 
 from __future__ import annotations
 
 import math
+import re
+import zipfile
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -36,7 +38,8 @@ from pathlib import Path
 import numpy as np
 
 from hlik.human import cleanup
-from hlik.human.motion import RATE_RANGE
+from hlik.human.motion import MAX_FRAMES, RATE_RANGE
+from hlik.util.arrayfile import array_shapes
 from hlik.util.errors import HlikError, MotionFormatError
 from hlik.util.tomlfile import read_toml, unknown_key
 
@@ -186,6 +189,7 @@ def _read_bvh(path: Path, data: Path) -> tuple[np.ndarray, list[str], float, str
     except ImportError:
         raise MotionFormatError(path, 'reading BVH needs bvhio: pip install -e ".[bvh]"') from None
 
+    _check_bvh_frames(path, data)
     try:
         container = bvhio.readAsBvh(str(data))
         root = bvhio.convertBvhToHierarchy(container.Root)
@@ -213,6 +217,28 @@ def _read_bvh(path: Path, data: Path) -> tuple[np.ndarray, list[str], float, str
     return positions, names, 1.0 / container.FrameTime, up
 
 
+def _check_bvh_frames(path: Path, data: Path) -> None:
+    """The BVH's ``Frames:`` against its motion rows and hlik's frame limit, before bvhio reads it
+    (bvhio never returns from a file with fewer rows than ``Frames:`` says, which exporters write:
+    YanjieZe/GMR #172)."""
+    try:
+        text = data.read_text(errors="replace")
+    except OSError as e:
+        raise MotionFormatError(path, f"cannot read {data.name}: {e.strerror or e}") from None
+    head, motion, rest = text.partition("\nMOTION")
+    said = re.search(r"^\s*Frames:\s*(\d+)\s*$", rest, re.M)
+    if not motion or said is None:
+        raise MotionFormatError(path, f"{data.name}: not a BVH file (no MOTION section with Frames:)")
+    frames = int(said.group(1))
+    _check_frames(path, data, frames)
+    timed = re.search(r"^\s*Frame Time:.*$", rest, re.M)
+    rows = sum(1 for line in rest[timed.end() :].splitlines() if line.strip()) if timed else 0
+    if rows < frames:
+        raise MotionFormatError(
+            path, f"{data.name}: Frames: {frames} but {rows} motion rows (the file ends early); fix Frames:"
+        )
+
+
 def _load_array(path: Path, data: Path, desc: Mapping) -> tuple[np.ndarray, list[str], float | None]:
     """The keypoint array, its joints' names if the description names them, and the frame rate an
     ``.npz`` stores (``fps``, ``rate``, ``framerate`` or ``mocap_framerate``; else None)."""
@@ -221,6 +247,12 @@ def _load_array(path: Path, data: Path, desc: Mapping) -> tuple[np.ndarray, list
     suffix = data.suffix.lower()
     joint_names: list[str] = []
     rate = None
+    if suffix in (".npz", ".npy"):
+        try:
+            shapes = array_shapes(data)
+        except (ValueError, OSError, zipfile.BadZipFile, EOFError) as e:
+            raise MotionFormatError(path, f"cannot read {data.name}: {_without_content(e)}") from None
+        _check_frames(path, data, max((s[0] for s in shapes.values() if len(s) > 1), default=0))
     try:
         if suffix == ".npz":
             with np.load(data) as arrays:
@@ -242,13 +274,36 @@ def _load_array(path: Path, data: Path, desc: Mapping) -> tuple[np.ndarray, list
         else:
             delimiter = "," if suffix == ".csv" else None
             array = np.loadtxt(data, delimiter=delimiter, ndmin=2)
-    except (ValueError, OSError) as e:
-        raise MotionFormatError(path, f"cannot read {data.name}: {' '.join(str(e).split())}") from None
+            _check_frames(path, data, len(array))
+    except (ValueError, OSError, zipfile.BadZipFile, EOFError) as e:
+        raise MotionFormatError(path, f"cannot read {data.name}: {_without_content(e)}") from None
     if array.ndim not in (2, 3) or (array.ndim == 3 and array.shape[2] != 3):
         raise MotionFormatError(
             path, f"{data.name}: expected (T, columns) or (T, J, 3), got shape {array.shape}"
         )
     return array, joint_names, rate
+
+
+def _without_content(error: Exception) -> str:
+    """What went wrong reading a data file, without quoting the file (it may be anything a
+    description points at): NumPy's text errors give the line they could not convert."""
+    if isinstance(error, OSError) and error.strerror:
+        return error.strerror
+    text = " ".join(str(error).split())
+    where = re.search(r"at row (\d+), column (\d+)", text)
+    if "could not convert" in text:
+        at = f" (row {int(where.group(1)) + 1}, column {where.group(2)})" if where else ""
+        return f"not a table of numbers{at}"
+    quoted = "'" in text or '"' in text
+    return "not a keypoint array" if quoted and not text.startswith(("array ", "the array")) else text
+
+
+def _check_frames(path: Path, data: Path, frames: int) -> None:
+    """Refuse a take longer than :data:`~hlik.human.motion.MAX_FRAMES` before anything is fitted."""
+    if frames > MAX_FRAMES:
+        raise MotionFormatError(
+            path, f"{data.name}: {frames} frames, more than hlik's {MAX_FRAMES}; crop the take first"
+        )
 
 
 def _column(path: Path, array: np.ndarray, name: str, where: object, joint_names: list[str]) -> np.ndarray:
@@ -326,6 +381,9 @@ def _assemble(
             points[key] = np.stack([np.interp(times, times[good], value[good, k]) for k in range(3)], axis=1)
         notes.append(f"{path}: {data.name}: {bad.sum()} frames with NaN keypoints, interpolated")
     scale = _units(path, desc, points)
+    if "units" not in desc:
+        unit = next(u for u, f in UNITS.items() if f == scale)
+        notes.append(f"{path}: units detected as {unit} (arms of {arm_length(points) * scale:.2f} m)")
     up = _up_axis(path, desc, points, notes, skeleton_up)
     rot = _z_up(up)
     arrays = {k: (v * scale) @ rot.T for k, v in points.items()}

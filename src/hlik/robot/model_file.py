@@ -119,15 +119,19 @@ def compile_model(
     path = path.resolve()
     if not path.is_file():
         raise RobotError(f"{toml}: model {source!r} not found ({path})")
-    if path.suffix.lower() == ".urdf":
-        spec, limits = _urdf_spec(path, toml, package_dirs)
-    else:
-        try:
-            spec = mujoco.MjSpec.from_file(str(path))
-        except ValueError as e:
-            raise RobotError(f"{path}: cannot load MJCF: {' '.join(str(e).split())}") from None
-        limits = {"velocity": {}, "effort": {}}
-    model = _compile(spec, path)
+    try:  # the model's own faults name the robot file too: the file a user wrote and can fix
+        if path.suffix.lower() == ".urdf":
+            spec, limits = _urdf_spec(path, toml, package_dirs)
+        else:
+            try:
+                spec = mujoco.MjSpec.from_file(str(path))
+            except ValueError as e:
+                raise RobotError(f"{path}: cannot load MJCF: {' '.join(str(e).split())}") from None
+            limits = {"velocity": {}, "effort": {}}
+        model = _compile(spec, path)
+    except RobotError as e:
+        said = str(e)
+        raise RobotError(f"{toml}: model {said}" if said.startswith(str(path)) else said) from None
     names = {model.joint(i).name for i in range(model.njnt)}
     unknown = [j for j in keep if j not in names]
     if unknown:

@@ -101,6 +101,10 @@ class ConfiguredSolver:
         return self.solve(problem, self.settings, self.progress)
 
 
+MAX_WEIGHT = 1e6  # any solver weight; the bundled stacks' largest is 30
+MAX_COUNT = 100_000  # iterations or evaluations per frame; the defaults are 20-150
+
+
 def check_settings(
     settings: object,
     *,
@@ -113,10 +117,10 @@ def check_settings(
     """Check a solver's settings dataclass in its ``__post_init__``, so that the Python API refuses
     what a stack file would: every listed field a finite number ``>= 0`` (``at_least_zero``),
     ``> 0`` (``positive``), ``<= 0`` (``at_most_zero``), in (0, 1] (``fractions``) or a whole
-    number ``>= 1`` (``counts``); the ``scenario``, the ``gamma`` table (criterion -> finite number
-    ``>= 0``) and, where present, ``collision_detect > collision_margin``. Every weight (a field
-    named ``<what>_cost``) and ``collision_margin`` are ``>= 0`` and ``collision_detect > 0``
-    without being listed.
+    number in [1, :data:`MAX_COUNT`] (``counts``); the ``scenario``, the ``gamma`` table (criterion
+    -> finite number ``>= 0``) and, where present, ``collision_detect > collision_margin``. Every
+    weight (a field named ``<what>_cost``) is in [0, :data:`MAX_WEIGHT`], ``collision_margin``
+    ``>= 0`` and ``collision_detect > 0`` without being listed.
 
     Raises:
         SettingsError: ``"<Class>.<field> must be ..., got <value>"`` for the first bad field
@@ -146,10 +150,14 @@ def check_settings(
             value = getattr(settings, key)
             if not (_is_real(value) and math.isfinite(value) and holds(value)):
                 fail(key, rule)
+    for key in weights:  # a weight of 1e300 overflows the objective's squares
+        if getattr(settings, key) > MAX_WEIGHT:
+            fail(key, f"a finite number in [0, {MAX_WEIGHT:g}]")
     for key in counts:
         value = getattr(settings, key)
-        if not (isinstance(value, numbers.Integral) and not isinstance(value, bool) and int(value) >= 1):
-            fail(key, "a whole number >= 1")
+        integral = isinstance(value, numbers.Integral) and not isinstance(value, bool)
+        if not (integral and 1 <= int(value) <= MAX_COUNT):
+            fail(key, f"a whole number in [1, {MAX_COUNT}]")
     _check_choices(settings, owner)
 
 

@@ -94,7 +94,11 @@ def load_approaches(path: str | Path = PAPER) -> tuple[Approach, ...]:
         for solver in _solvers(ev, path, "evaluation"):
             takes = SPECS[solver].takes_criteria
             groups = [()] if scenario != "pose" or not takes else []
-            groups += [tuple(p) for p in pairs] if takes else []
+            # [a, b] and [b, a] are one approach: the criteria's order changes nothing
+            unique: dict[tuple, tuple] = {}
+            for p in pairs:
+                unique.setdefault(tuple(sorted(p)), tuple(p))
+            groups += list(unique.values()) if takes else []
             for criteria in groups:
                 _check_criteria(criteria, path)
                 out.append(Approach(solver, criteria, scenario, stacks[scenario]))

@@ -41,6 +41,8 @@ def read_toml(path: Path, what: str, bundled: Sequence[str] = ()) -> dict:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
         raise SettingsError(f"{path}: not valid TOML ({e})") from None
+    except RecursionError:  # tomllib recurses per nesting level
+        raise SettingsError(f"{path}: not valid TOML (arrays or tables nested too deeply)") from None
 
 
 def unknown_key(
