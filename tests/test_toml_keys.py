@@ -156,7 +156,8 @@ def test_a_pair_given_in_both_orders_is_one_approach(tmp_path):
 
     path = tmp_path / "a.toml"
     path.write_text(
-        '[correlation]\nsolvers = ["jm"]\n[evaluation]\nsolvers = ["qp"]\npairs = [["SYN", "HJA_r"], ["HJA_r", "SYN"]]\n'
+        '[correlation]\nsolvers = ["jm"]\n[evaluation]\nsolvers = ["qp"]\n'
+        'pairs = [["SYN", "HJA_r"], ["HJA_r", "SYN"]]\n'
     )
     names = [a.name for a in load_approaches(path) if not a.correlation]
     assert names.count("qp+SYN+HJA_r") == 1 and "qp+HJA_r+SYN" not in names
