@@ -33,7 +33,7 @@ from hlik.solvers.slsqp import SLSQPSettings
 from hlik.solvers.stack_file import load_stack
 from hlik.trajectory import load_trajectory
 from hlik.util import atomic
-from hlik.util.atomic import atomic_paths, pair_lock
+from hlik.util.atomic import atomic_path, atomic_paths, pair_lock
 from hlik.util.errors import RobotError, SettingsError, TrajectoryFormatError
 from hlik.util.paths import robots_dir
 
@@ -661,3 +661,12 @@ def test_an_npz_inside_the_archive_is_whole(tmp_path, traj, robot):
     write_outputs(tmp_path / "x.npz", tmp_path / "x.rrd", traj, robot)
     assert zipfile.is_zipfile(tmp_path / "x.npz") and _state(tmp_path) == "both"
     assert (tmp_path / "x.npz").stat().st_mode & 0o777 == 0o644
+
+
+def test_a_full_disk_inside_an_atomic_write_names_the_file(tmp_path):
+    """A failed write() names no file (the study's metric.toml and cells said only "No space left
+    on device"): the error names the file being written."""
+    target = tmp_path / "metric.toml"
+    with pytest.raises(OSError) as e, atomic_path(target):
+        raise OSError(errno.ENOSPC, "No space left on device")
+    assert e.value.filename == str(target) and files(tmp_path) == []

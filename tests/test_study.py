@@ -204,6 +204,18 @@ def test_a_failing_cell_is_listed_not_fatal(tmp_path):
     assert not list((tmp_path / "cells").glob("*"))
 
 
+def test_a_metric_from_part_of_the_cells_says_so(tmp_path):
+    """With a take that fails, the metric comes from the others: its source says it is partial
+    (where the metric is kept, not only in the run's output)."""
+    bad = tmp_path / "broken.xml"
+    bad.write_text("<MMM><Motion name='x'>")
+    result = run_study(
+        [demo_motion_path(), bad], ["dual_panda"], TINY[:2], tmp_path / "out", seconds=1.0, workers=1
+    )
+    assert sum(o.error is not None for o in result.outcomes) == 2
+    assert "partial: 2 of 4 cells failed" in load_metric(result.metric_file).source
+
+
 def test_the_derived_metric_round_trips_through_hlik_evaluate(tiny, tmp_path):
     out, result = tiny
     assert load_metric(out / "metric.toml") == result.metric

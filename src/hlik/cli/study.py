@@ -17,6 +17,7 @@ from hlik.cli.app import (
     console,
     one_line,
     progress_bar,
+    warn,
 )
 from hlik.util.errors import HlikError
 from hlik.util.paths import corpus_setting, demo_motion_path
@@ -126,6 +127,13 @@ def _report(result: StudyResult) -> None:
             table.add_row(r["approach"], f"{r['m_hl']:.3f}", f"{r['m_f']:.3f}", f"{r['m_hl_f']:.3f}")
         console.print(table)
     reused = sum(o.reused for o in result.outcomes)
+    if failed:
+        warn(
+            [
+                f"{result.metric_file} and the rankings come from {len(result.outcomes) - len(failed)} of "
+                f"{len(result.outcomes)} cells: {len(failed)} failed (listed above); run again to retry them"
+            ]
+        )
     console.print(
         f"{len(result.outcomes)} cells ({reused} reused, {len(failed)} failed) in "
         f"{result.wall_seconds:.0f} s; metric: {result.metric_file} (hlik run/evaluate --metric); "

@@ -193,7 +193,11 @@ def run_study(
         )
         raise HlikError(f"{out}: no frames to correlate{first}")
     corr = correlate(frames)
-    metric = derive_metric(frames, corr, source=f"hlik study of {len(takes)} takes on {', '.join(robots)}")
+    failed = [o for o in outcomes if o.error is not None]
+    # a metric from part of the cells says so where it is kept, not only in the run's output
+    partial = f"; partial: {len(failed)} of {len(cells)} cells failed (report.html)" if failed else ""
+    source = f"hlik study of {len(takes)} takes on {', '.join(robots)}{partial}"
+    metric = derive_metric(frames, corr, source=source)
     metric_file = out / "metric.toml"
     with atomic_path(metric_file) as tmp:
         tmp.write_text(metric.to_toml(), encoding="utf-8")

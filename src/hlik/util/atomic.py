@@ -82,6 +82,8 @@ def _name_the_target(error: BaseException, targets: dict[str, Path]) -> None:
             name = getattr(error, attr)
             if name is not None and str(name) in targets:
                 setattr(error, attr, str(targets[str(name)]))
+        if error.filename is None:  # a failed write (a full disk) names no file: name the targets
+            error.filename = ", ".join(str(t) for t in targets.values())
 
 
 def _temporary(path: Path) -> Path:
