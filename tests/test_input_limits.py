@@ -70,9 +70,7 @@ def test_a_data_file_that_is_not_numbers_is_not_quoted(tmp_path, secret):
     (tmp_path / "private.txt").write_text(secret + "\n")
     desc = tmp_path / "take.toml"
     desc.write_text(f'data = "private.txt"\nrate = 30\n[keypoints]\n{KEYPOINTS}')
-    with pytest.raises(
-        MotionFormatError, match=r"cannot read private.txt: not a table of numbers \(row 1"
-    ) as e:
+    with pytest.raises(MotionFormatError, match=r"private.txt: not a table of numbers \(row 1") as e:
         read_keypoints(desc)
     assert secret not in str(e.value) and secret.split(":")[0] not in str(e.value).split("private.txt")[-1]
 

@@ -72,8 +72,8 @@ def test_dropouts_are_gaps_filled_from_the_frames_around(tmp_path, table, clean,
     broken[400, 0:3] = sentinel  # the left wrist for a frame
     keypoints = read_keypoints(_write(tmp_path, broken))
     assert any(
-        "undetected keypoints (0 0 0 or -1 -1 -1) taken as gaps: left_wrist in 1, right_elbow in 6 frames"
-        in n
+        "undetected keypoints (0 0 0 or -1 -1 -1) taken as gaps: left_wrist in 1 frame (13.33 s); "
+        "right_elbow in 6 frames (6.67-6.83 s)" in n
         for n in keypoints.notes
     )
     # filled by interpolation: within a few cm of what was recorded, nowhere near the origin

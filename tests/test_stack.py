@@ -68,6 +68,8 @@ def test_a_robot_table_named_like_the_robot_but_misspelt_is_noted(tmp_path):
     assert len(notes) == 1 and "[qp.robot.armar7] is not used for robot 'armar6'" in notes[0]
     assert stack.near_misses("mink", "armar6") == notes  # the mink stack starts from [qp]
     assert stack.near_misses("qp", "dual_panda") == [] and stack.near_misses("slsqp", "armar6") == []
+    # a bundled robot's table is meant for it: the bundled ee_pose's [qp.robot.armar6] on ARMAR-III
+    assert load_stack("ee_pose").near_misses("qp", "armar3") == []
     assert stack.settings("qp", "armar6").orientation_cost == stack.settings("qp").orientation_cost
 
 

@@ -160,12 +160,19 @@ class ControllerChecks:
         }
 
 
+def joint_velocity(traj: Trajectory, robot: Robot) -> np.ndarray:
+    """(T, n) each joint's speed into each frame, rad/s (0 into the first: at rest before it), the
+    differencing of every check here (unlimited joints by their shorter way round)."""
+    q, dt = traj.q, frame_period(traj.times)
+    steps = joint_difference(q[1:], q[:-1], np.isinf(robot.lower))  # (T-1, n)
+    return np.vstack([np.zeros((1, robot.dof)), steps / dt])
+
+
 def controller_checks(traj: Trajectory, robot: Robot) -> ControllerChecks:
     """The :class:`ControllerChecks` of ``traj`` on ``robot``."""
     q, dt = traj.q, frame_period(traj.times)
     unlimited = np.isinf(robot.lower)
-    steps = joint_difference(q[1:], q[:-1], unlimited)  # (T-1, n)
-    velocity = np.vstack([np.zeros((1, robot.dof)), steps / dt])  # into each frame, at rest before
+    velocity = joint_velocity(traj, robot)
     accel = np.zeros_like(q)
     accel[:-1] = np.diff(velocity, axis=0) / dt
     jerks = np.zeros_like(q)  # (T, n): into each frame's acceleration from the last

@@ -72,7 +72,7 @@ def calibrate(
         bool,
         typer.Option(
             "--write",
-            help="Write the mapping tables into the robot's .toml (replacing [mapping.*]).",
+            help="Write the mapping tables into the robot's .toml (replacing \\[mapping.*]).",
             metavar=FLAG,
             show_default=False,
         ),

@@ -38,7 +38,7 @@ SolverOpt = Annotated[
     typer.Option(
         "--solver",
         "-s",
-        help="Retargeting solver: jm, jv, qp, slsqp, or mink (the QP on mink, with a stack's [mink] "
+        help="Retargeting solver: jm, jv, qp, slsqp, or mink (the QP on mink, with a stack's \\[mink] "
         "tasks and limits).",
     ),
 ]
@@ -65,7 +65,7 @@ StackOpt = Annotated[
 CriteriaOpt = Annotated[
     str | None,
     typer.Option(
-        help="Human-likeness criteria to add (jv, qp, slsqp), e.g. SYN,HJA_r; replaces the stack's."
+        help="Human-likeness criteria to add (jv, qp, slsqp, mink), e.g. SYN,HJA_r; replaces the stack's."
     ),
 ]
 RunScenarioOpt = Annotated[

@@ -251,7 +251,7 @@ def _load_array(path: Path, data: Path, desc: Mapping) -> tuple[np.ndarray, list
         try:
             shapes = array_shapes(data)
         except (ValueError, OSError, zipfile.BadZipFile, EOFError) as e:
-            raise MotionFormatError(path, f"cannot read {data.name}: {_without_content(e)}") from None
+            raise MotionFormatError(path, f"cannot read {data}: {_without_content(e)}") from None
         _check_frames(path, data, max((s[0] for s in shapes.values() if len(s) > 1), default=0))
     try:
         if suffix == ".npz":
@@ -276,7 +276,7 @@ def _load_array(path: Path, data: Path, desc: Mapping) -> tuple[np.ndarray, list
             array = np.loadtxt(data, delimiter=delimiter, ndmin=2)
             _check_frames(path, data, len(array))
     except (ValueError, OSError, zipfile.BadZipFile, EOFError) as e:
-        raise MotionFormatError(path, f"cannot read {data.name}: {_without_content(e)}") from None
+        raise MotionFormatError(path, f"cannot read {data}: {_without_content(e)}") from None
     if array.ndim not in (2, 3) or (array.ndim == 3 and array.shape[2] != 3):
         raise MotionFormatError(
             path, f"{data.name}: expected (T, columns) or (T, J, 3), got shape {array.shape}"
@@ -361,10 +361,11 @@ def _assemble(
             path, f"{data.name}: keypoint {never[0]} is never detected (0 0 0 or -1 -1 -1 in every frame)"
         )
     if gone:
-        said = ", ".join(f"{n} in {g.sum()}" for n, g in gone.items())
-        notes.append(
-            f"{path}: {data.name}: undetected keypoints (0 0 0 or -1 -1 -1) taken as gaps: {said} frames"
+        said = "; ".join(
+            f"{n} in {g.sum()} frame{'s' if g.sum() > 1 else ''} ({cleanup.spans(g, times)})"
+            for n, g in gone.items()
         )
+        notes.append(f"{path}: {data.name}: undetected keypoints (0 0 0 or -1 -1 -1) taken as gaps: {said}")
     stacked = np.stack(list(points.values()))  # (K, T, 3)
     bad = ~np.all(np.isfinite(stacked), axis=(0, 2))
     if bad.all():
@@ -379,7 +380,9 @@ def _assemble(
         good = np.flatnonzero(~bad)
         for key, value in points.items():
             points[key] = np.stack([np.interp(times, times[good], value[good, k]) for k in range(3)], axis=1)
-        notes.append(f"{path}: {data.name}: {bad.sum()} frames with NaN keypoints, interpolated")
+        what = "missing (NaN) or undetected keypoints" if gone else "NaN keypoints"
+        spans = cleanup.spans(bad, times)
+        notes.append(f"{path}: {data.name}: {bad.sum()} frames with {what}, interpolated ({spans})")
     scale = _units(path, desc, points)
     if "units" not in desc:
         unit = next(u for u, f in UNITS.items() if f == scale)

@@ -18,6 +18,7 @@ from pathlib import Path
 from types import MappingProxyType
 
 from hlik.criteria import registry
+from hlik.robot.model import available_robots
 from hlik.util.errors import SettingsError
 from hlik.util.paths import tasks_dir
 from hlik.util.tomlfile import read_toml, unknown_key
@@ -73,7 +74,8 @@ class Stack:
         their name is close to its own (``armar7`` for ``armar6``): likely a typo. Tables for other
         robots are not refused when the stack is read, since a robot's name can be anything."""
         layers = ("qp", solver) if solver == "mink" else (solver,)
-        names = {n for s in layers for n in self.robots.get(s, {})} - {robot}
+        # another bundled robot's table is meant for it (armar6 beside armar3), not a typo
+        names = {n for s in layers for n in self.robots.get(s, {})} - {robot, *available_robots()}
         return [
             f"{self.name}: [{s}.{ROBOT_TABLE}.{n}] is not used for robot {robot!r}: a typo of {robot!r}?"
             for s in layers

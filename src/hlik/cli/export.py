@@ -1,0 +1,54 @@
+"""``hlik export``: a trajectory in a format robot software reads, refused where a controller would
+refuse it."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from hlik.cli.app import FLAG, console, one_line
+from hlik.util.errors import HlikError
+
+
+def export(
+    trajectory: Annotated[Path, typer.Argument(help="Trajectory .npz written by `hlik run`.")],
+    fmt: Annotated[str, typer.Option("--format", "-f", help="Export format: csv.")] = "csv",
+    out: Annotated[
+        Path | None, typer.Option("--out", "-o", help="Output file (default: the trajectory's, new suffix).")
+    ] = None,
+    allow_violations: Annotated[
+        bool,
+        typer.Option(
+            "--allow-violations",
+            help="Write a trajectory that breaks a joint limit anyway (the file says which).",
+            metavar=FLAG,
+            show_default=False,
+        ),
+    ] = False,
+    force: Annotated[bool, typer.Option("--force", help="Replace an existing file.", metavar=FLAG)] = False,
+) -> None:
+    """Export a trajectory (joint angles by name, time, base pose) for a robot's software."""
+    from hlik.export import WRITERS
+    from hlik.export import export as export_trajectory
+    from hlik.robot.model import load_robot
+    from hlik.trajectory import check_robot, load_trajectory
+    from hlik.util.errors import RobotError
+
+    with one_line():
+        if fmt not in WRITERS:
+            raise HlikError(f"unknown export format {fmt!r}; choose one of: {', '.join(WRITERS)}")
+        path = out or trajectory.with_suffix(WRITERS[fmt][1])
+        if path.exists() and not force:
+            raise HlikError(f"{path}: exists; pass --force to replace it, or --out to write elsewhere")
+        if path.resolve() == trajectory.resolve():
+            raise HlikError(f"{path}: is the trajectory itself; choose another --out")
+        traj = load_trajectory(trajectory)
+        try:
+            robot = load_robot(traj.robot)
+        except RobotError as e:
+            raise HlikError(f"{trajectory}: robot: {e}") from None
+        check_robot(trajectory, traj, robot)
+        written = export_trajectory(traj, robot, path, fmt, allow_violations)
+    console.print(f"wrote {written} ({fmt}, {traj.n_frames} frames, {robot.dof} joints)", highlight=False)

@@ -1,0 +1,54 @@
+"""Stage 7b, exports: a trajectory in the formats robot software reads, checked first against what
+a controller rejects (:mod:`~hlik.export.violations`).
+
+- ``csv``: one row per frame, ``time`` then the joints by name and the base pose
+  (:mod:`~hlik.export.csvfile`).
+
+A format adds one module with a ``write(traj, robot, path, allowed)`` function and one line in
+:data:`WRITERS`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from pathlib import Path
+from types import MappingProxyType
+
+from hlik.export import csvfile
+from hlik.export.violations import first_violation
+from hlik.robot.model import Robot
+from hlik.trajectory import Trajectory
+from hlik.util.atomic import atomic_path
+from hlik.util.errors import HlikError
+
+# format -> (writer into a path, file suffix)
+WRITERS: Mapping[str, tuple[Callable[[Trajectory, Robot, Path, str | None], None], str]] = MappingProxyType(
+    {"csv": (csvfile.write, ".csv")}
+)
+
+
+def export(
+    traj: Trajectory, robot: Robot, path: str | Path, fmt: str = "csv", allow_violations: bool = False
+) -> Path:
+    """Write ``traj`` (of ``robot``) to ``path`` in ``fmt``, whole or not at all.
+
+    A trajectory a controller would reject (:func:`first_violation`: a position, speed,
+    acceleration or effort limit broken) is refused unless ``allow_violations``; then the file says
+    which limit it breaks.
+
+    Raises:
+        HlikError: an unknown format, or the first violation (frame, joint, value, limit).
+    """
+    if fmt not in WRITERS:
+        raise HlikError(f"unknown export format {fmt!r}; choose one of: {', '.join(WRITERS)}")
+    violation = first_violation(traj, robot)
+    if violation is not None and not allow_violations:
+        raise HlikError(f"{path}: not exported: {violation} (--allow-violations writes it anyway)")
+    write, _ = WRITERS[fmt]
+    path = Path(path)
+    with atomic_path(path) as tmp:
+        write(traj, robot, tmp, violation)
+    return path
+
+
+__all__ = ["WRITERS", "export", "first_violation"]

@@ -1,0 +1,59 @@
+"""What a robot's controller rejects before it moves (Kinovarobotics/ros_kortex #131, #267; the UR
+ROS 2 driver #1273): a joint outside its range, or faster, accelerating harder or needing more
+torque than its limits, at any frame. The same differencing and inverse dynamics as
+:mod:`hlik.executable`."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from hlik.executable import controller_checks, joint_velocity
+from hlik.robot.model import Robot
+from hlik.trajectory import Trajectory
+
+TOLERANCE = 1e-6  # relative: what rounding leaves of a limit the solver kept exactly
+
+
+def first_violation(traj: Trajectory, robot: Robot) -> str | None:
+    """None if ``traj`` keeps every position, speed, acceleration and effort limit of ``robot``;
+    else the first broken one as ``"frame 12 (0.12 s): joint Elbow_L acceleration 14.2 rad/s^2
+    over its limit 10"`` (the earliest frame; at that frame, position before speed before
+    acceleration before effort)."""
+    checks = controller_checks(traj, robot)
+    q, v = traj.q, joint_velocity(traj, robot)
+    slack = TOLERANCE * np.maximum(1.0, np.abs(np.stack([robot.lower, robot.upper])))
+    below, above = q < robot.lower - slack[0], q > robot.upper + slack[1]
+    acc, tau = np.abs(checks.acceleration), np.abs(checks.torque)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        tests = (
+            ("position", q, below | above, np.where(below, robot.lower, robot.upper), "rad"),
+            (
+                "speed",
+                np.abs(v),
+                np.abs(v) > robot.velocity_limit * (1 + TOLERANCE),
+                robot.velocity_limit,
+                "rad/s",
+            ),
+            (
+                "acceleration",
+                acc,
+                acc > robot.acceleration_limit * (1 + TOLERANCE),
+                robot.acceleration_limit,
+                "rad/s^2",
+            ),
+            ("effort", tau, tau > robot.effort_limit * (1 + TOLERANCE), robot.effort_limit, "N m"),
+        )
+    first = min((int(np.argmax(bad.any(axis=1))) for _, _, bad, _, _ in tests if bad.any()), default=None)
+    if first is None:
+        return None
+    for what, values, bad, limits, unit in tests:
+        if bad[first].any():
+            j = int(np.argmax(bad[first]))
+            limit = np.broadcast_to(limits, q.shape)[first, j]
+            value = values[first, j]
+            word = "outside its range at" if what == "position" else "over its limit"
+            return (
+                f"frame {first} ({traj.times[first] - traj.times[0]:.2f} s): joint {robot.joint_names[j]} "
+                f"{what} {value:.4g} {unit} {word} {limit:.4g}"
+            )
+    return None  # pragma: no cover - a frame found bad above is bad in one test

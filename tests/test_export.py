@@ -1,0 +1,113 @@
+"""Exports (issue 31): what a file gives back is the trajectory, by joint name, to the bit; a
+trajectory a controller would reject is refused naming the frame and joint."""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+from typer.testing import CliRunner
+
+from hlik import load_motion, load_robot, retarget
+from hlik.cli import app
+from hlik.export import export, first_violation
+from hlik.export.csvfile import BASE_COLUMNS
+from hlik.util.errors import HlikError
+from hlik.util.paths import demo_motion_path
+
+
+@pytest.fixture(scope="module")
+def panda_qp():
+    robot = load_robot("dual_panda")
+    return robot, retarget(load_motion(demo_motion_path(), rate=100).crop(0, 0.6), robot, "qp")
+
+
+def _read_csv(path):
+    with open(path, newline="", encoding="utf-8") as f:
+        lines = f.read().splitlines()
+    comments = [line[2:] for line in lines if line.startswith("# ")]
+    rows = list(csv.reader(line for line in lines if not line.startswith("#")))
+    return comments, rows[0], np.array(rows[1:], dtype=float)
+
+
+def test_csv_round_trip_gives_back_names_times_angles_and_base_exactly(panda_qp, tmp_path):
+    robot, traj = panda_qp
+    assert first_violation(traj, robot) is None  # the QP keeps every limit
+    path = export(traj, robot, tmp_path / "t.csv", "csv")
+    comments, names, table = _read_csv(path)
+    assert names == ["time", *robot.joint_names, *BASE_COLUMNS]
+    np.testing.assert_array_equal(table[:, 0], traj.times - traj.times[0])
+    np.testing.assert_array_equal(table[:, 1 : 1 + robot.dof], traj.q)
+    base = table[:, 1 + robot.dof :]
+    assert np.all(base == base[0])
+    np.testing.assert_array_equal(base[0, :3], traj.placement.translation)
+    w, x, y, z = base[0, 3:]
+    np.testing.assert_allclose(
+        Rotation.from_quat([x, y, z, w]).as_matrix(), traj.placement.rotation, atol=1e-12
+    )
+    assert any("quaternion order w, x, y, z" in c for c in comments)
+    assert any("100 Hz" in c and "dual_panda" in c for c in comments)
+
+
+def test_columns_follow_the_names_not_the_positions(panda_qp, tmp_path):
+    """A reader that picks columns by name gets each joint's own angles (GMR users matched by
+    column position and got another joint's)."""
+    robot, traj = panda_qp
+    _, names, table = _read_csv(export(traj, robot, tmp_path / "t.csv"))
+    for j, name in enumerate(robot.joint_names):
+        np.testing.assert_array_equal(table[:, names.index(name)], traj.q[:, j])
+
+
+@pytest.mark.parametrize("kind", ["position", "speed", "acceleration"])
+def test_a_trajectory_a_controller_rejects_is_refused_naming_frame_and_joint(panda_qp, tmp_path, kind):
+    """Each limit alone: the joint's path shifted past its stop (no speed changes), a constant 5
+    rad/s drift (checked with acceleration limits lifted: from rest any drift accelerates first),
+    a step into frame 20 (seen at frame 19, where the robot would have to accelerate)."""
+    robot, traj = panda_qp
+    q = traj.q.copy()
+    j = robot.joint_names.index("left_joint4")
+    if kind == "position":
+        q[:, j] += robot.upper[j] + 0.01 - q[:, j].max()
+        frame = int(np.argmax(q[:, j] > robot.upper[j]))
+    elif kind == "speed":
+        q[:, j] += 5.0 * (traj.times - traj.times[0])
+        robot = dataclasses.replace(robot, acceleration_limit=np.full(robot.dof, np.inf))
+        robot = dataclasses.replace(robot, effort_limit=np.full(robot.dof, np.inf))
+        frame = 1
+    else:
+        q[20:, j] -= 0.05
+        frame = 19
+    bad = dataclasses.replace(traj, q=q)
+    message = first_violation(bad, robot)
+    assert (
+        message is not None
+        and message.startswith(f"frame {frame} (")
+        and f"joint left_joint4 {kind}" in message
+    )
+    with pytest.raises(HlikError, match=f"not exported: frame {frame} ") as e:
+        export(bad, robot, tmp_path / "bad.csv")
+    assert "\n" not in str(e.value) and not (tmp_path / "bad.csv").exists()
+    comments, _, _ = _read_csv(export(bad, robot, tmp_path / "bad.csv", allow_violations=True))
+    assert any(
+        c.startswith("WARNING: exported with --allow-violations") and f"frame {frame} " in c for c in comments
+    )
+
+
+def test_hlik_export_refuses_a_jm_run_and_writes_a_qp_run(tmp_path):
+    """JM maps joint angles without the speed limits; the QP keeps them."""
+    runner = CliRunner()
+    for solver in ("jm", "qp"):
+        out = tmp_path / f"{solver}.rrd"
+        result = runner.invoke(app, ["run", "--robot", "armar6", "--solver", solver, "-o", str(out)])
+        assert result.exit_code == 0, result.output
+    refused = runner.invoke(app, ["export", str(tmp_path / "jm.npz")])
+    assert refused.exit_code == 2 and "not exported: frame" in refused.output
+    assert not (tmp_path / "jm.csv").exists()
+    written = runner.invoke(app, ["export", str(tmp_path / "qp.npz")])
+    assert written.exit_code == 0, written.output
+    assert (tmp_path / "qp.csv").is_file()
+    again = runner.invoke(app, ["export", str(tmp_path / "qp.npz")])
+    assert again.exit_code == 2 and "exists; pass --force" in again.output
