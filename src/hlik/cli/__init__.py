@@ -3,7 +3,7 @@ module per command. Bad input ends in one line on stderr and exit code 2."""
 
 from __future__ import annotations
 
-from hlik.cli import evaluate, export, learn, robots, run, study
+from hlik.cli import evaluate, export, learn, replay, robots, run, study
 from hlik.cli.app import app
 from hlik.cli.outputs import write_outputs
 
@@ -12,6 +12,7 @@ for command in (
     run.run,
     evaluate.evaluate,
     export.export,
+    replay.replay,
     learn.learn,
     study.study,
     robots.robots,

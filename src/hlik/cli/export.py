@@ -51,4 +51,8 @@ def export(
             raise HlikError(f"{trajectory}: robot: {e}") from None
         check_robot(trajectory, traj, robot)
         written = export_trajectory(traj, robot, path, fmt, allow_violations)
-    console.print(f"wrote {written} ({fmt}, {traj.n_frames} frames, {robot.dof} joints)", highlight=False)
+    console.print(
+        f"wrote {written} ({fmt}, {traj.n_frames} frames, {robot.dof} joints)",
+        highlight=False,
+        soft_wrap=True,
+    )

@@ -1,0 +1,48 @@
+"""``hlik replay``: a trajectory played through MuJoCo's physics, as a check before the robot."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from hlik.cli.app import console, one_line
+from hlik.util.errors import HlikError
+
+
+def replay(
+    trajectory: Annotated[Path, typer.Argument(help="Trajectory .npz written by `hlik run`.")],
+) -> None:
+    """Play a trajectory through MuJoCo's physics under a torque controller within the motors'
+    efforts; report how far each simulated TCP is from the commanded one, the joints at their
+    effort or speed limits, and contacts."""
+    from hlik.replay import BANDWIDTH, FOLLOWED
+    from hlik.replay import replay as play
+    from hlik.robot.model import load_robot
+    from hlik.trajectory import check_robot, load_trajectory
+    from hlik.util.errors import RobotError
+
+    with one_line():
+        traj = load_trajectory(trajectory)
+        try:
+            robot = load_robot(traj.robot)
+        except RobotError as e:
+            raise HlikError(f"{trajectory}: robot: {e}") from None
+        check_robot(trajectory, traj, robot)
+        result = play(traj, robot)
+    console.print(
+        f"{trajectory.name}: {robot.title}, {traj.solver}, {traj.n_frames} frames replayed "
+        f"(computed torque, {BANDWIDTH:g} Hz loops, clipped at the effort limits)",
+        highlight=False,
+        soft_wrap=True,
+    )
+    for line in result.lines():
+        console.print(f"  {line}", highlight=False, soft_wrap=True)
+    verdict = "follows" if result.followed() >= 0.99 else "does NOT follow"
+    console.print(
+        f"the simulated robot {verdict} the commanded TCPs within {100 * FOLLOWED:.0f} cm "
+        f"({100 * result.followed():.1f} % of frames)",
+        highlight=False,
+        soft_wrap=True,
+    )
