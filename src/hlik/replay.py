@@ -77,7 +77,7 @@ class Replay:
         )
         out.append(f"joints at their effort limit: {joints or 'none'}")
         peak = self.speed_ratio.max(axis=0)
-        fast = ", ".join(f"{n} ({peak[j]:.2f} x)" for j, n in enumerate(self.joint_names) if peak[j] > 1.0)
+        fast = ", ".join(f"{n} ({peak[j]:.2f} x)" for j, n in enumerate(self.joint_names) if peak[j] > 1.005)
         out.append(f"joints over their speed limit: {fast or 'none'}")
         touching = sorted({c for c in self.contacts if c})
         frames = sum(bool(c) for c in self.contacts)
