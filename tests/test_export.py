@@ -111,3 +111,44 @@ def test_hlik_export_refuses_a_jm_run_and_writes_a_qp_run(tmp_path):
     assert (tmp_path / "qp.csv").is_file()
     again = runner.invoke(app, ["export", str(tmp_path / "qp.npz")])
     assert again.exit_code == 2 and "exists; pass --force" in again.output
+
+
+def test_mcap_round_trip_through_the_ros2_reader(panda_qp, tmp_path):
+    """Read back with mcap-ros2-support's own reader: joint states by name with the positions and
+    the velocities the checks use, the whole trajectory, the hands' target poses, all at the frames'
+    times (ns)."""
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+
+    from hlik.executable import joint_velocity
+
+    robot, traj = panda_qp
+    path = export(traj, robot, tmp_path / "t.mcap", "mcap")
+    topics: dict[str, list] = {}
+    with open(path, "rb") as f:
+        for _, channel, message, ros_msg in make_reader(
+            f, decoder_factories=[DecoderFactory()]
+        ).iter_decoded_messages():
+            topics.setdefault(channel.topic, []).append((message.log_time, ros_msg))
+    n = traj.n_frames
+    expected = {"/hlik/info": 1, "/joint_trajectory": 1}
+    expected |= {"/joint_states": n, "/tcp_target/left": n, "/tcp_target/right": n}
+    assert {k: len(v) for k, v in topics.items()} == expected
+    times_ns = np.round((traj.times - traj.times[0]) * 1e9).astype(int)
+    states = topics["/joint_states"]
+    assert [t for t, _ in states] == list(times_ns)
+    assert all(list(m.name) == list(robot.joint_names) for _, m in states)
+    np.testing.assert_array_equal([m.position for _, m in states], traj.q)
+    np.testing.assert_array_equal([m.velocity for _, m in states], joint_velocity(traj, robot))
+    whole = topics["/joint_trajectory"][0][1]
+    assert list(whole.joint_names) == list(robot.joint_names)
+    np.testing.assert_array_equal([p.positions for p in whole.points], traj.q)
+    stamps = [p.time_from_start.sec * 10**9 + p.time_from_start.nanosec for p in whole.points]
+    assert stamps == list(times_ns)
+    for a, side in enumerate(("left", "right")):
+        poses = [m.pose for _, m in topics[f"/tcp_target/{side}"]]
+        pos = [[p.position.x, p.position.y, p.position.z] for p in poses]
+        np.testing.assert_array_equal(pos, traj.targets.pos[:, a])
+        quat = [[p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w] for p in poses]
+        np.testing.assert_allclose(Rotation.from_quat(quat).as_matrix(), traj.targets.rot[:, a], atol=1e-12)
+    assert '"violation": null' in topics["/hlik/info"][0][1].data

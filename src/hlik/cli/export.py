@@ -14,7 +14,7 @@ from hlik.util.errors import HlikError
 
 def export(
     trajectory: Annotated[Path, typer.Argument(help="Trajectory .npz written by `hlik run`.")],
-    fmt: Annotated[str, typer.Option("--format", "-f", help="Export format: csv.")] = "csv",
+    fmt: Annotated[str, typer.Option("--format", "-f", help="Export format: csv or mcap (ROS 2).")] = "csv",
     out: Annotated[
         Path | None, typer.Option("--out", "-o", help="Output file (default: the trajectory's, new suffix).")
     ] = None,

@@ -2,7 +2,9 @@
 a controller rejects (:mod:`~hlik.export.violations`).
 
 - ``csv``: one row per frame, ``time`` then the joints by name and the base pose
-  (:mod:`~hlik.export.csvfile`).
+  (:mod:`~hlik.export.csvfile`);
+- ``mcap``: ROS 2 messages, joint states, the joint trajectory and the hands' target poses
+  (:mod:`~hlik.export.mcapfile`).
 
 A format adds one module with a ``write(traj, robot, path, allowed)`` function and one line in
 :data:`WRITERS`.
@@ -14,7 +16,7 @@ from collections.abc import Callable, Mapping
 from pathlib import Path
 from types import MappingProxyType
 
-from hlik.export import csvfile
+from hlik.export import csvfile, mcapfile
 from hlik.export.violations import first_violation
 from hlik.robot.model import Robot
 from hlik.trajectory import Trajectory
@@ -23,7 +25,7 @@ from hlik.util.errors import HlikError
 
 # format -> (writer into a path, file suffix)
 WRITERS: Mapping[str, tuple[Callable[[Trajectory, Robot, Path, str | None], None], str]] = MappingProxyType(
-    {"csv": (csvfile.write, ".csv")}
+    {"csv": (csvfile.write, ".csv"), "mcap": (mcapfile.write, ".mcap")}
 )
 
 
