@@ -152,3 +152,16 @@ def test_mcap_round_trip_through_the_ros2_reader(panda_qp, tmp_path):
         quat = [[p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w] for p in poses]
         np.testing.assert_allclose(Rotation.from_quat(quat).as_matrix(), traj.targets.rot[:, a], atol=1e-12)
     assert '"violation": null' in topics["/hlik/info"][0][1].data
+
+
+def test_an_output_named_for_another_format_is_refused(tmp_path):
+    runner = CliRunner()
+    out = tmp_path / "qp.rrd"
+    assert (
+        runner.invoke(app, ["run", "--robot", "dual_panda", "--solver", "qp", "-o", str(out)]).exit_code == 0
+    )
+    result = runner.invoke(
+        app, ["export", str(out.with_suffix(".npz")), "--format", "mcap", "--out", str(tmp_path / "x.csv")]
+    )
+    assert result.exit_code == 2 and "--format mcap writes .mcap files" in result.output
+    assert not (tmp_path / "x.csv").exists()

@@ -30,6 +30,7 @@ from hlik.trajectory import Trajectory
 BANDWIDTH = 10.0  # Hz, each joint's position loop
 SUBSTEPS = 10  # physics steps per trajectory frame
 FOLLOWED = 0.01  # m: a simulated TCP this close to the commanded one follows it
+SPEED_SLACK = 1.005  # a simulated speed this far over its limit is the tracking lag's, not the plan's
 
 
 @dataclass(frozen=True, eq=False)
@@ -59,6 +60,20 @@ class Replay:
         """Share of frames where both TCPs are within :data:`FOLLOWED` of the commanded ones."""
         return float(np.mean(np.all(self.deviation <= FOLLOWED, axis=1)))
 
+    def verdict(self) -> str:
+        """One line: whether the robot would follow, and what stops it (the simulation lets a joint
+        pass its speed limit, which a motor would not: that is a failure too)."""
+        share = 100 * self.followed()
+        fast = [n for j, n in enumerate(self.joint_names) if self.speed_ratio[:, j].max() > SPEED_SLACK]
+        if self.followed() >= 0.99 and not fast:
+            within = f"within {100 * FOLLOWED:.0f} cm ({share:.1f} % of frames)"
+            return f"the simulated robot follows the commanded motion {within}"
+        why = (
+            [f"the TCPs within {100 * FOLLOWED:.0f} cm in only {share:.1f} % of frames"] if share < 99 else []
+        )
+        why += [f"{', '.join(fast)} over their speed limits"] if fast else []
+        return f"NOT executable as commanded: {'; '.join(why)}"
+
     def lines(self) -> list[str]:
         """The report, one line per hand, then saturation and contacts."""
         out = []
@@ -77,7 +92,9 @@ class Replay:
         )
         out.append(f"joints at their effort limit: {joints or 'none'}")
         peak = self.speed_ratio.max(axis=0)
-        fast = ", ".join(f"{n} ({peak[j]:.2f} x)" for j, n in enumerate(self.joint_names) if peak[j] > 1.005)
+        fast = ", ".join(
+            f"{n} ({peak[j]:.2f} x)" for j, n in enumerate(self.joint_names) if peak[j] > SPEED_SLACK
+        )
         out.append(f"joints over their speed limit: {fast or 'none'}")
         touching = sorted({c for c in self.contacts if c})
         frames = sum(bool(c) for c in self.contacts)

@@ -14,7 +14,9 @@ from hlik.util.errors import HlikError
 
 def export(
     trajectory: Annotated[Path, typer.Argument(help="Trajectory .npz written by `hlik run`.")],
-    fmt: Annotated[str, typer.Option("--format", "-f", help="Export format: csv or mcap (ROS 2).")] = "csv",
+    fmt: Annotated[
+        str, typer.Option("--format", "-f", help="Export format: csv or mcap (ROS 2 messages).")
+    ] = "csv",
     out: Annotated[
         Path | None, typer.Option("--out", "-o", help="Output file (default: the trajectory's, new suffix).")
     ] = None,
@@ -29,7 +31,9 @@ def export(
     ] = False,
     force: Annotated[bool, typer.Option("--force", help="Replace an existing file.", metavar=FLAG)] = False,
 ) -> None:
-    """Export a trajectory (joint angles by name, time, base pose) for a robot's software."""
+    """Export a trajectory (joint angles by name, time, base pose) for a robot's software; refused,
+    naming the first frame and joint, where a controller would reject it (a joint out of range or
+    over its speed, acceleration or effort limit)."""
     from hlik.export import WRITERS
     from hlik.export import export as export_trajectory
     from hlik.robot.model import load_robot
@@ -39,7 +43,10 @@ def export(
     with one_line():
         if fmt not in WRITERS:
             raise HlikError(f"unknown export format {fmt!r}; choose one of: {', '.join(WRITERS)}")
-        path = out or trajectory.with_suffix(WRITERS[fmt][1])
+        suffix = WRITERS[fmt][1]
+        path = out or trajectory.with_suffix(suffix)
+        if path.suffix.lower() != suffix:
+            raise HlikError(f"{path}: --format {fmt} writes {suffix} files; name the output so")
         if path.exists() and not force:
             raise HlikError(f"{path}: exists; pass --force to replace it, or --out to write elsewhere")
         if path.resolve() == trajectory.resolve():

@@ -17,7 +17,7 @@ def replay(
     """Play a trajectory through MuJoCo's physics under a torque controller within the motors'
     efforts; report how far each simulated TCP is from the commanded one, the joints at their
     effort or speed limits, and contacts."""
-    from hlik.replay import BANDWIDTH, FOLLOWED
+    from hlik.replay import BANDWIDTH, SUBSTEPS
     from hlik.replay import replay as play
     from hlik.robot.model import load_robot
     from hlik.trajectory import check_robot, load_trajectory
@@ -33,16 +33,11 @@ def replay(
         result = play(traj, robot)
     console.print(
         f"{trajectory.name}: {robot.title}, {traj.solver}, {traj.n_frames} frames replayed "
-        f"(computed torque, {BANDWIDTH:g} Hz loops, clipped at the effort limits)",
+        f"(computed torque, each joint's error a {BANDWIDTH:g} Hz loop, {SUBSTEPS} physics steps a frame, "
+        "clipped at the effort limits)",
         highlight=False,
         soft_wrap=True,
     )
     for line in result.lines():
         console.print(f"  {line}", highlight=False, soft_wrap=True)
-    verdict = "follows" if result.followed() >= 0.99 else "does NOT follow"
-    console.print(
-        f"the simulated robot {verdict} the commanded TCPs within {100 * FOLLOWED:.0f} cm "
-        f"({100 * result.followed():.1f} % of frames)",
-        highlight=False,
-        soft_wrap=True,
-    )
+    console.print(result.verdict(), highlight=False, soft_wrap=True)

@@ -17,8 +17,8 @@ TOLERANCE = 1e-6  # relative: what rounding leaves of a limit the solver kept ex
 def first_violation(traj: Trajectory, robot: Robot) -> str | None:
     """None if ``traj`` keeps every position, speed, acceleration and effort limit of ``robot``;
     else the first broken one as ``"frame 12 (0.12 s): joint Elbow_L acceleration 14.2 rad/s^2
-    over its limit 10"`` (the earliest frame; at that frame, position before speed before
-    acceleration before effort)."""
+    over its limit 10, the first of 3 frames that break a limit"`` (the earliest frame; at that
+    frame, position before speed before acceleration before effort)."""
     checks = controller_checks(traj, robot)
     q, v = traj.q, joint_velocity(traj, robot)
     slack = TOLERANCE * np.maximum(1.0, np.abs(np.stack([robot.lower, robot.upper])))
@@ -46,6 +46,7 @@ def first_violation(traj: Trajectory, robot: Robot) -> str | None:
     first = min((int(np.argmax(bad.any(axis=1))) for _, _, bad, _, _ in tests if bad.any()), default=None)
     if first is None:
         return None
+    frames = int(np.count_nonzero(np.any([bad.any(axis=1) for _, _, bad, _, _ in tests], axis=0)))
     for what, values, bad, limits, unit in tests:
         if bad[first].any():
             j = int(np.argmax(bad[first]))
@@ -54,6 +55,7 @@ def first_violation(traj: Trajectory, robot: Robot) -> str | None:
             word = "outside its range at" if what == "position" else "over its limit"
             return (
                 f"frame {first} ({traj.times[first] - traj.times[0]:.2f} s): joint {robot.joint_names[j]} "
-                f"{what} {value:.4g} {unit} {word} {limit:.4g}"
+                f"{what} {value:.4g} {unit} {word} {limit:.4g}, "
+                f"the first of {frames} frames that break a limit"
             )
     return None  # pragma: no cover - a frame found bad above is bad in one test
