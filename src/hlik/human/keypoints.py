@@ -353,36 +353,8 @@ def _assemble(
     """Units, up axis and gaps of the named points (T, 3) in the file's units and axes.
 
     ``skeleton_up``: a BVH skeleton's up axis (``up`` in ``desc`` overrides it)."""
-    notes = []
-    points, gone = cleanup.dropouts(points)
-    never = [n for n, g in gone.items() if g.all()]
-    if never:
-        raise MotionFormatError(
-            path, f"{data.name}: keypoint {never[0]} is never detected (0 0 0 or -1 -1 -1 in every frame)"
-        )
-    if gone:
-        said = "; ".join(
-            f"{n} in {g.sum()} frame{'s' if g.sum() > 1 else ''} ({cleanup.spans(g, times)})"
-            for n, g in gone.items()
-        )
-        notes.append(f"{path}: {data.name}: undetected keypoints (0 0 0 or -1 -1 -1) taken as gaps: {said}")
-    stacked = np.stack(list(points.values()))  # (K, T, 3)
-    bad = ~np.all(np.isfinite(stacked), axis=(0, 2))
-    if bad.all():
-        raise MotionFormatError(path, f"{data.name}: no frame has every keypoint")
-    if bad.any():
-        if bad.mean() > 0.2 or bad[0] or bad[-1]:
-            raise MotionFormatError(
-                path,
-                f"{data.name}: {bad.sum()} of {len(bad)} frames lack keypoints (NaN), first at "
-                f"{times[np.argmax(bad)]:.2f} s; too many or at an end to fill, cut or repair them",
-            )
-        good = np.flatnonzero(~bad)
-        for key, value in points.items():
-            points[key] = np.stack([np.interp(times, times[good], value[good, k]) for k in range(3)], axis=1)
-        what = "missing (NaN) or undetected keypoints" if gone else "NaN keypoints"
-        spans = cleanup.spans(bad, times)
-        notes.append(f"{path}: {data.name}: {bad.sum()} frames with {what}, interpolated ({spans})")
+    notes: list[str] = []
+    points = _fill_gaps(path, data, times, points, notes)
     scale = _units(path, desc, points)
     if "units" not in desc:
         unit = next(u for u, f in UNITS.items() if f == scale)
@@ -415,6 +387,44 @@ def _assemble(
         source=path,
         notes=tuple(notes),
     )
+
+
+def _fill_gaps(
+    path: Path, data: Path, times: np.ndarray, points: dict[str, np.ndarray], notes: list[str]
+) -> dict[str, np.ndarray]:
+    """The points with undetected keypoints (:func:`hlik.human.cleanup.dropouts`) and NaN frames
+    filled by interpolation, noted; refused where a keypoint is never seen or the gaps are too many
+    or at an end."""
+    points, gone = cleanup.dropouts(points)
+    never = [n for n, g in gone.items() if g.all()]
+    if never:
+        raise MotionFormatError(
+            path, f"{data.name}: keypoint {never[0]} is never detected (0 0 0 or -1 -1 -1 in every frame)"
+        )
+    if gone:
+        said = "; ".join(
+            f"{n} in {g.sum()} frame{'s' if g.sum() > 1 else ''} ({cleanup.spans(g, times)})"
+            for n, g in gone.items()
+        )
+        notes.append(f"{path}: {data.name}: undetected keypoints (0 0 0 or -1 -1 -1) taken as gaps: {said}")
+    stacked = np.stack(list(points.values()))  # (K, T, 3)
+    bad = ~np.all(np.isfinite(stacked), axis=(0, 2))
+    if bad.all():
+        raise MotionFormatError(path, f"{data.name}: no frame has every keypoint")
+    if bad.any():
+        if bad.mean() > 0.2 or bad[0] or bad[-1]:
+            raise MotionFormatError(
+                path,
+                f"{data.name}: {bad.sum()} of {len(bad)} frames lack keypoints (NaN), first at "
+                f"{times[np.argmax(bad)]:.2f} s; too many or at an end to fill, cut or repair them",
+            )
+        good = np.flatnonzero(~bad)
+        for key, value in points.items():
+            points[key] = np.stack([np.interp(times, times[good], value[good, k]) for k in range(3)], axis=1)
+        what = "missing (NaN) or undetected keypoints" if gone else "NaN keypoints"
+        spans = cleanup.spans(bad, times)
+        notes.append(f"{path}: {data.name}: {bad.sum()} frames with {what}, interpolated ({spans})")
+    return points
 
 
 def _repair(

@@ -240,6 +240,13 @@ TABLE_KEYS = {
 }
 
 
+def _name(path: Path, desc: dict) -> str:
+    name = _text(path, desc, "name", path.stem)
+    if not NAME.fullmatch(name):
+        raise RobotError(f"{path}: name {name!r} must be letters, digits, '_' or '-' (it names files)")
+    return name
+
+
 def _check_keys(path: Path, desc: dict) -> None:
     """Refuse a key the description does not know, naming its table and the closest known key."""
     if problem := unknown_key(desc, KEYS, "the top-level table"):
@@ -254,9 +261,7 @@ def _check_keys(path: Path, desc: dict) -> None:
 
 def _build(path: Path, desc: dict, need_mapping: bool = True) -> Robot:
     _check_keys(path, desc)
-    name = _text(path, desc, "name", path.stem)
-    if not NAME.fullmatch(name):
-        raise RobotError(f"{path}: name {name!r} must be letters, digits, '_' or '-' (it names files)")
+    name = _name(path, desc)
     source = _text(path, desc, "model", desc.get("mjcf"))  # ``mjcf`` is the key's former name
     arms, extra = _arm_joints(path, desc)
     listed = [j for s in SIDES for j in arms[s]] + list(extra)

@@ -119,19 +119,7 @@ def compile_model(
     path = path.resolve()
     if not path.is_file():
         raise RobotError(f"{toml}: model {source!r} not found ({path})")
-    try:  # the model's own faults name the robot file too: the file a user wrote and can fix
-        if path.suffix.lower() == ".urdf":
-            spec, limits = _urdf_spec(path, toml, package_dirs)
-        else:
-            try:
-                spec = mujoco.MjSpec.from_file(str(path))
-            except ValueError as e:
-                raise RobotError(f"{path}: cannot load MJCF: {' '.join(str(e).split())}") from None
-            limits = {"velocity": {}, "effort": {}}
-        model = _compile(spec, path)
-    except RobotError as e:
-        said = str(e)
-        raise RobotError(f"{toml}: model {said}" if said.startswith(str(path)) else said) from None
+    spec, limits, model = _load(toml, path, package_dirs)
     names = {model.joint(i).name for i in range(model.njnt)}
     unknown = [j for j in keep if j not in names]
     if unknown:
@@ -152,6 +140,27 @@ def compile_model(
     if touching:
         model = _compile(spec, path)
     return ModelFile(path, model, welded, limits["velocity"], limits["effort"])
+
+
+def _load(
+    toml: Path, path: Path, package_dirs: Mapping[str, str]
+) -> tuple[mujoco.MjSpec, dict[str, dict[str, float]], mujoco.MjModel]:
+    """The spec of the model file ``path`` (MJCF or URDF), its URDF limits and its compiled model;
+    the model's own faults name the robot file ``toml`` too: the file a user wrote and can fix."""
+    try:
+        if path.suffix.lower() == ".urdf":
+            spec, limits = _urdf_spec(path, toml, package_dirs)
+        else:
+            try:
+                spec = mujoco.MjSpec.from_file(str(path))
+            except ValueError as e:
+                raise RobotError(f"{path}: cannot load MJCF: {' '.join(str(e).split())}") from None
+            limits = {"velocity": {}, "effort": {}}
+        model = _compile(spec, path)
+    except RobotError as e:
+        said = str(e)
+        raise RobotError(f"{toml}: model {said}" if said.startswith(str(path)) else said) from None
+    return spec, limits, model
 
 
 def _add_excludes(spec: mujoco.MjSpec, toml: Path, path: Path, exclude: Sequence[Sequence[str]]) -> None:

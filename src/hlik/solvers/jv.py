@@ -357,6 +357,29 @@ def secondary(
     return grad
 
 
+def _state(robot: Robot, q: np.ndarray, data: mujoco.MjData, terms: Sequence[Term]) -> RobotState:
+    """The kinematics at ``q`` with the site Jacobians ``terms`` read."""
+    sites = tuple(sorted({i for t in terms for i in t.sites}))
+    return robot_state(robot, q, jacobians=True, data=data, jacobian_sites=sites)
+
+
+def _null_step(
+    held: np.ndarray, start: np.ndarray, *, q: np.ndarray, free: np.ndarray, grad: np.ndarray,
+    box: JointBox, settings: JVSettings,
+) -> np.ndarray:  # fmt: skip
+    """The null-space step of the rows ``held`` (k, n) over the ``free`` joints, scaled into the
+    box from ``q + start``."""
+    null = np.zeros(len(q))
+    null[free] = settings.k * (null_space_projector(held[:, free], settings.rcond) @ grad[free])
+    return null * _fraction_inside(q + start, null, box)
+
+
+def _bounded(null: np.ndarray, memory: Memory) -> tuple[np.ndarray, float]:
+    """``null`` within the null-space bound, halved whenever the null-space step reverses."""
+    null_bound = memory.null_bound * (0.5 if null @ memory.null < 0.0 else 1.0)
+    return bound(null, null_bound), null_bound
+
+
 def _step_tries(
     box: JointBox,
     q: np.ndarray,
@@ -399,9 +422,8 @@ def step(
     criteria) make bounded gradient steps of a fixed size zig-zag across their minimum, so a frame
     would never converge.
     """
-    sites = tuple(sorted({i for t in (*targets, *(c for c, _ in criteria)) for i in t.sites}))
     data = mujoco.MjData(robot.model) if data is None else data
-    state = robot_state(robot, q, jacobians=True, data=data, jacobian_sites=sites)
+    state = _state(robot, q, data, (*targets, *(c for c, _ in criteria)))
     evaluated = evaluate_targets(targets, state, frame)
     if stop_if_reached and targets_reached(evaluated, settings):
         return np.zeros(robot.dof), memory
@@ -416,20 +438,10 @@ def step(
     # step is scaled (not clipped) into the box, since a clipped null-space step moves the targets
     free = (q > box.lower) & (q < box.upper)
 
-    def null_step(held: np.ndarray, start: np.ndarray) -> np.ndarray:
-        """The null-space step of the rows ``held`` (k, n), into the box from ``q + start``."""
-        null = np.zeros(robot.dof)
-        null[free] = settings.k * (null_space_projector(held[:, free], settings.rcond) @ grad[free])
-        return null * _fraction_inside(q + start, null, box)
-
-    def bounded(null: np.ndarray) -> tuple[np.ndarray, float]:
-        null_bound = memory.null_bound * (0.5 if null @ memory.null < 0.0 else 1.0)
-        return bound(null, null_bound), null_bound
-
-    null, null_bound = bounded(null_step(jac, task))
-    dq = bound(task + null, settings.max_step)
+    null_step = partial(_null_step, q=q, free=free, grad=grad, box=box, settings=settings)
+    null, null_bound = _bounded(null_step(jac, task), memory)
     # clipped here, not only by iterate: the collision rows are checked on the step taken
-    dq = box.clip(q + dq) - q
+    dq = box.clip(q + bound(task + null, settings.max_step)) - q
     tries = _step_tries(box, q, settings.max_step, data, collision, hard)
     rows, rhs = tries[0].rows, tries[0].bound  # every row: the torque limits and the collision rows
     constrained, missed = memory.constrained, memory.missed
@@ -437,7 +449,7 @@ def step(
         constrained = True
         task, null, taken = _avoiding_step(jac, xdot, weights, damping, tries, null_step)
         missed = missed or (taken is not None and taken.misses_limits)
-        null, null_bound = bounded(null)
+        null, null_bound = _bounded(null, memory)
         dq, null = _null_within(task, null, rows, rhs, settings.max_step, memory.null)
     if not np.all(np.isfinite(dq)):
         dq, null = np.zeros(robot.dof), np.zeros(robot.dof)  # a failed step stays put: nothing NaN

@@ -65,15 +65,7 @@ def load_approaches(path: str | Path = PAPER) -> tuple[Approach, ...]:
         raise HlikError(f'{path}: exclude must be a list of approach names or patterns, e.g. ["jv+MJE"]')
     stacks = {"pose": "paper_opt", "relative": "relative_pose"} | dict(raw.get("stacks", {}))
     corr, ev = raw.get("correlation", {}), raw.get("evaluation", {})
-    for where, table, allowed in (
-        ("[correlation]", corr, ("solvers", "single_criteria")),
-        ("[evaluation]", ev, ("solvers", "pairs", "scenarios")),
-        ("[stacks]", raw.get("stacks", {}), ("pose", "relative")),
-    ):
-        if not isinstance(table, dict):
-            raise HlikError(f"{path}: {where} must be a table")
-        if problem := unknown_key(table, allowed, where):
-            raise HlikError(f"{path}: {problem}")
+    _check_tables(path, corr, ev, raw.get("stacks", {}))
     single = corr.get("single_criteria", False)
     if not isinstance(single, bool):
         raise HlikError(f"{path}: correlation.single_criteria must be true or false")
@@ -114,6 +106,19 @@ def load_approaches(path: str | Path = PAPER) -> tuple[Approach, ...]:
     if not any(a.correlation for a in seen.values()):
         raise HlikError(f"{path}: no approach for the correlation (a [correlation] table with solvers)")
     return tuple(seen.values())
+
+
+def _check_tables(path: Path, corr: object, ev: object, stacks: object) -> None:
+    """Each of the file's tables a table, with none but its own keys."""
+    for where, table, allowed in (
+        ("[correlation]", corr, ("solvers", "single_criteria")),
+        ("[evaluation]", ev, ("solvers", "pairs", "scenarios")),
+        ("[stacks]", stacks, ("pose", "relative")),
+    ):
+        if not isinstance(table, dict):
+            raise HlikError(f"{path}: {where} must be a table")
+        if problem := unknown_key(table, allowed, where):
+            raise HlikError(f"{path}: {problem}")
 
 
 def _solvers(table: dict, path: Path, where: str) -> list[str]:
