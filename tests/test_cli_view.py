@@ -263,30 +263,37 @@ def test_solver_and_body_warnings_count_frames(
     assert any("--rate 0" in note for note in notes) == (rate == 0 and native < 50)
 
 
-def test_a_hand_turned_away_from_its_target_is_warned_about():
+def _turned_notes(solver: str, turn, scenario: str = "pose") -> list[str]:
+    """The "turned" warnings of a 40-frame run whose hands sit on their targets' positions, turned
+    by ``turn(tcp_rot)`` (40, 2, 3, 3) in place."""
     n = 40
     pos, rot = np.zeros((n, 2, 3)), np.broadcast_to(np.eye(3), (n, 2, 3, 3))
     turned = rot.copy()
-    turned[: n // 2, 0] = [[1, 0, 0], [0, 0, -1], [0, 1, 0]]  # left hand 90° about x, half the frames
+    turn(turned)
     traj = SimpleNamespace(
         n_frames=n,
-        solver="slsqp",
+        solver=solver,
         tcp_pos=pos,
         tcp_rot=turned,
         targets=SimpleNamespace(pos=pos, rot=rot),
         diagnostics=SimpleNamespace(n_failed=0, n_unconverged=0),
     )
+    ev = SimpleNamespace(
+        collisions=np.zeros(n, bool),
+        max_speed_ratio=1.0,
+        scenario=scenario,
+        controller=_checks(n),
+        **_errors(traj),
+    )
+    return [note for note in run_warnings(traj, SimpleNamespace(rate=100.0), ev, 100.0) if "turned" in note]
+
+
+def test_a_hand_turned_away_from_its_target_is_warned_about():
+    def half(rot):
+        rot[:20, 0] = [[1, 0, 0], [0, 0, -1], [0, 1, 0]]  # left hand 90° about x, half the frames
+
     for scenario in ("pose", "relative"):
-        ev = SimpleNamespace(
-            collisions=np.zeros(n, bool),
-            max_speed_ratio=1.0,
-            scenario=scenario,
-            controller=_checks(n),
-            **_errors(traj),
-        )
-        notes = [
-            note for note in run_warnings(traj, SimpleNamespace(rate=100.0), ev, 100.0) if "turned" in note
-        ]
+        notes = _turned_notes("slsqp", half, scenario)
         # relative runs follow the other hand, not the human's hand orientations
         expected = ["left hand turned more than 30° from its target in 20 of 40 frames (50 %), up to 90°"]
         assert [note.split(" (out of")[0] for note in notes] == (expected if scenario == "pose" else [])
@@ -296,27 +303,12 @@ def test_a_hand_turned_away_from_its_target_is_warned_about():
 def test_a_hand_turned_a_little_in_every_frame_is_warned_about(angle):
     """A hand turned less than 30 deg but in every frame (ARMAR-6's SLSQP left hand on the Cut
     take, 17 deg) is warned about once its median passes 10 deg; the other hand, on target, not."""
-    n = 40
-    pos, rot = np.zeros((n, 2, 3)), np.broadcast_to(np.eye(3), (n, 2, 3, 3))
-    turned = rot.copy()
     c, s = np.cos(np.radians(angle)), np.sin(np.radians(angle))
-    turned[:, 1] = [[1, 0, 0], [0, c, -s], [0, s, c]]  # right hand about x in every frame
-    traj = SimpleNamespace(
-        n_frames=n,
-        solver="qp",
-        tcp_pos=pos,
-        tcp_rot=turned,
-        targets=SimpleNamespace(pos=pos, rot=rot),
-        diagnostics=SimpleNamespace(n_failed=0, n_unconverged=0),
-    )
-    ev = SimpleNamespace(
-        collisions=np.zeros(n, bool),
-        max_speed_ratio=1.0,
-        scenario="pose",
-        controller=_checks(n),
-        **_errors(traj),
-    )
-    notes = [note for note in run_warnings(traj, SimpleNamespace(rate=100.0), ev, 100.0) if "turned" in note]
+
+    def every(rot):
+        rot[:, 1] = [[1, 0, 0], [0, c, -s], [0, s, c]]  # right hand about x in every frame
+
+    notes = _turned_notes("qp", every)
     expected = (
         [f"right hand turned {angle:.0f}° from its target's orientation (median)"] if angle > 10 else []
     )

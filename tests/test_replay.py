@@ -11,7 +11,7 @@ from typer.testing import CliRunner
 
 from hlik import load_motion, load_robot, retarget
 from hlik.cli import app
-from hlik.replay import FOLLOWED, reference, replay
+from hlik.replay import FOLLOWED, commanded, reference, replay
 from hlik.util.paths import demo_motion_path
 
 
@@ -50,14 +50,11 @@ def test_the_reference_keeps_the_trajectory_s_own_accelerations(demo):
     """The controller's reference is C1 and asks for no acceleration the executable checks did
     not see: its accelerations are the second differences, its velocity continuous, and it passes
     within a dt^2/8 of the frames."""
-    from hlik.executable import controller_checks, joint_velocity
+    from hlik.executable import controller_checks
 
     robot = load_robot("armar6")
     traj = retarget(demo, robot, "qp")
-    dt = float(np.median(np.diff(traj.times)))
-    v = joint_velocity(traj, robot)
-    velocity = np.vstack([v, v[-1:], v[-1:]])
-    q = traj.q[0] + np.cumsum(np.vstack([np.zeros((1, robot.dof)), v[1:] * dt]), axis=0)
+    q, velocity, dt = commanded(traj, robot)
     checked = controller_checks(traj, robot).acceleration
     for k in range(1, len(q) - 2):
         pos, vel, acc = reference(q, velocity, dt, k, 0.0)

@@ -210,11 +210,18 @@ def controller_checks(traj: Trajectory, robot: Robot) -> ControllerChecks:
     )
 
 
+def inverse_model(model: mujoco.MjModel) -> mujoco.MjModel:
+    """A copy of ``model`` for ``mj_inverse`` as this module uses it: contacts, joint limits and
+    passive forces off."""
+    copy = model.__copy__()
+    copy.opt.disableflags |= _OFF
+    return copy
+
+
 def inverse_dynamics(robot: Robot, q: np.ndarray, qvel: np.ndarray, qacc: np.ndarray) -> np.ndarray:
     """(T, n) joint torques (N m) of ``q``, ``qvel``, ``qacc`` (T, n) each, by ``mujoco.mj_inverse``
     with contacts and constraints off."""
-    model = robot.model.__copy__()
-    model.opt.disableflags |= _OFF
+    model = inverse_model(robot.model)
     data = mujoco.MjData(model)
     out = np.empty_like(q)
     for k in range(len(q)):

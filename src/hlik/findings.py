@@ -11,7 +11,7 @@ import numpy as np
 
 from hlik.criteria.functional import relative_errors
 from hlik.executable import BELOW_FLOOR, ControllerChecks
-from hlik.human.motion import HumanMotion
+from hlik.human.motion import HumanMotion, stretches
 from hlik.metrics import Evaluation
 from hlik.solvers import solver_spec
 from hlik.trajectory import Trajectory
@@ -128,9 +128,8 @@ def lag_spans(fpos: np.ndarray, times: np.ndarray, shown: int = 3) -> str:
     any_off = off.any(axis=1)
     if not any_off.any():
         return ""
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], any_off.astype(int), [0]])))
     spans = []
-    for start, stop in zip(edges[::2], edges[1::2]):
+    for start, stop in stretches(any_off):
         left, right = bool(off[start:stop, 0].any()), bool(off[start:stop, 1].any())
         which = "both" if left and right else ("left" if left else "right")
         spans.append(f"{times[start]:.2f}-{times[stop - 1]:.2f} s ({which})")

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from hlik.executable import _OFF, joint_velocity
+from hlik.executable import inverse_model, joint_velocity
 from hlik.human.motion import frame_period
 from hlik.robot.model import SIDES, Robot
 from hlik.trajectory import Trajectory
@@ -102,6 +102,16 @@ class Replay:
         return out
 
 
+def commanded(traj: Trajectory, robot: Robot) -> tuple[np.ndarray, np.ndarray, float]:
+    """What :func:`reference` reads: (T, n) the angles with unlimited joints unwound, (T + 2, n)
+    the speed into each frame (at rest before the first) and after the last (a take may end
+    moving: it goes on at its last speed), and the frame period, s."""
+    n, dt = robot.dof, frame_period(traj.times)
+    v = joint_velocity(traj, robot)
+    q = traj.q[0] + np.cumsum(np.vstack([np.zeros((1, n)), v[1:] * dt]), axis=0)
+    return q, np.vstack([v, v[-1:], v[-1:]]), dt
+
+
 def reference(q: np.ndarray, velocity: np.ndarray, dt: float, k: int, u: float) -> tuple[np.ndarray, ...]:
     """(n,) position, velocity and acceleration of the commanded motion at ``u`` in [0, 1] of the
     way from frame ``k`` to ``k + 1``: the quadratic B-spline of the frames, whose acceleration is
@@ -119,17 +129,13 @@ def reference(q: np.ndarray, velocity: np.ndarray, dt: float, k: int, u: float) 
 def replay(traj: Trajectory, robot: Robot) -> Replay:
     """Play ``traj`` on ``robot`` through MuJoCo's physics (see the module docstring)."""
     T, n = traj.q.shape
-    dt = frame_period(traj.times)
-    v = joint_velocity(traj, robot)
-    velocity = np.vstack([v, v[-1:], v[-1:]])  # a take may end moving: it goes on at its last speed
-    q = traj.q[0] + np.cumsum(np.vstack([np.zeros((1, n)), v[1:] * dt]), axis=0)  # unlimited unwound
+    q, velocity, dt = commanded(traj, robot)
     model = robot.model.__copy__()
     model.opt.timestep = dt / SUBSTEPS
     data = mujoco.MjData(model)
     data.qpos[:] = traj.q[0]
     mujoco.mj_forward(model, data)
-    control = mujoco.MjModel.__copy__(model)
-    control.opt.disableflags |= _OFF
+    control = inverse_model(model)
     law = mujoco.MjData(control)
     w, effort, ids = 2 * math.pi * BANDWIDTH, robot.effort_limit, [robot.site_id(s, "tcp") for s in SIDES]
     q_out, tcp, speed = np.empty((T, n)), np.empty((T, 2, 3)), np.empty((T, n))

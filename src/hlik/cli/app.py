@@ -7,7 +7,7 @@ import sys
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Annotated, Any
+from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 from rich.console import Console
@@ -16,6 +16,10 @@ from typer.core import TyperGroup
 
 from hlik.util.atomic import raising_on_sigterm
 from hlik.util.errors import HlikError
+
+if TYPE_CHECKING:  # imported where used: `hlik --help` stays quick
+    from hlik.robot.model import Robot
+    from hlik.trajectory import Trajectory
 
 FLAG = ""  # metavar of an on/off option: typer would show it as `--json <bool>`, taking a value
 
@@ -125,6 +129,26 @@ def one_line() -> Iterator[None]:
     except OSError as e:  # what the readers do not name themselves (permission, full disk)
         where = f"{e.filename}: " if e.filename else ""
         fail(HlikError(f"{where}{e.strerror or e}"))
+
+
+def trajectory_and_robot(path: Path) -> tuple[Trajectory, Robot]:
+    """The trajectory ``path`` and the robot it names, checked to be that robot's.
+
+    Raises:
+        HlikError: the file cannot be read, its robot cannot be loaded (named as the file's), or
+            its joints are not the robot's.
+    """
+    from hlik.robot.model import load_robot
+    from hlik.trajectory import check_robot, load_trajectory
+    from hlik.util.errors import RobotError
+
+    traj = load_trajectory(path)
+    try:
+        robot = load_robot(traj.robot)
+    except RobotError as e:
+        raise HlikError(f"{path}: robot: {e}") from None
+    check_robot(path, traj, robot)
+    return traj, robot
 
 
 def progress_bar(spinner: bool = False):

@@ -16,9 +16,9 @@ from hlik.cli.app import (
     ScenarioOpt,
     console,
     one_line,
+    trajectory_and_robot,
     warn,
 )
-from hlik.util.errors import HlikError
 from hlik.util.paths import corpus_setting
 
 
@@ -37,19 +37,11 @@ def evaluate(
     from hlik.criteria.learned import learn
     from hlik.criteria.unified import check_scenario, load_metric, midpoints
     from hlik.metrics import evaluate as evaluate_trajectory
-    from hlik.robot.model import load_robot
-    from hlik.trajectory import check_robot, load_trajectory
-    from hlik.util.errors import RobotError
 
     with one_line():
         check_scenario(scenario)
         unified_metric = load_metric(metric) if metric is not None else None
-        traj = load_trajectory(trajectory)
-        try:
-            r = load_robot(traj.robot)
-        except RobotError as e:
-            raise HlikError(f"{trajectory}: robot: {e}") from None
-        check_robot(trajectory, traj, r)
+        traj, r = trajectory_and_robot(trajectory)
         learned = learn(r, corpus if corpus is not None else corpus_setting()[0])
         ev = evaluate_trajectory(traj, r, learned, scenario=scenario, metric=unified_metric)
     warn(learned.notes)

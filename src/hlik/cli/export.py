@@ -8,7 +8,7 @@ from typing import Annotated
 
 import typer
 
-from hlik.cli.app import FLAG, console, one_line
+from hlik.cli.app import FLAG, console, one_line, trajectory_and_robot
 from hlik.util.errors import HlikError
 
 
@@ -36,9 +36,6 @@ def export(
     over its speed, acceleration or effort limit)."""
     from hlik.export import WRITERS
     from hlik.export import export as export_trajectory
-    from hlik.robot.model import load_robot
-    from hlik.trajectory import check_robot, load_trajectory
-    from hlik.util.errors import RobotError
 
     with one_line():
         if fmt not in WRITERS:
@@ -51,12 +48,7 @@ def export(
             raise HlikError(f"{path}: exists; pass --force to replace it, or --out to write elsewhere")
         if path.resolve() == trajectory.resolve():
             raise HlikError(f"{path}: is the trajectory itself; choose another --out")
-        traj = load_trajectory(trajectory)
-        try:
-            robot = load_robot(traj.robot)
-        except RobotError as e:
-            raise HlikError(f"{trajectory}: robot: {e}") from None
-        check_robot(trajectory, traj, robot)
+        traj, robot = trajectory_and_robot(trajectory)
         written = export_trajectory(traj, robot, path, fmt, allow_violations)
     console.print(
         f"wrote {written} ({fmt}, {traj.n_frames} frames, {robot.dof} joints)",

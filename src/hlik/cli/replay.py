@@ -7,8 +7,7 @@ from typing import Annotated
 
 import typer
 
-from hlik.cli.app import console, one_line
-from hlik.util.errors import HlikError
+from hlik.cli.app import console, one_line, trajectory_and_robot
 
 
 def replay(
@@ -19,17 +18,9 @@ def replay(
     effort or speed limits, and contacts."""
     from hlik.replay import BANDWIDTH, SUBSTEPS
     from hlik.replay import replay as play
-    from hlik.robot.model import load_robot
-    from hlik.trajectory import check_robot, load_trajectory
-    from hlik.util.errors import RobotError
 
     with one_line():
-        traj = load_trajectory(trajectory)
-        try:
-            robot = load_robot(traj.robot)
-        except RobotError as e:
-            raise HlikError(f"{trajectory}: robot: {e}") from None
-        check_robot(trajectory, traj, robot)
+        traj, robot = trajectory_and_robot(trajectory)
         result = play(traj, robot)
     console.print(
         f"{trajectory.name}: {robot.title}, {traj.solver}, {traj.n_frames} frames replayed "

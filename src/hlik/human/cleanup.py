@@ -19,6 +19,8 @@ from collections.abc import Mapping
 
 import numpy as np
 
+from hlik.human.motion import stretches
+
 SENTINELS = (0.0, -1.0)  # what estimators write for a keypoint they did not detect
 # a limb (shoulder-elbow, elbow-wrist) longer or shorter than its take's median by this share is a
 # misdetection in that frame: real limbs keep their length; estimation noise is a few per cent
@@ -33,13 +35,11 @@ SIDES = ("left", "right")
 def spans(mask: np.ndarray, times: np.ndarray, shown: int = 3) -> str:
     """The runs of True in ``mask`` (T,) as ``"1.20-1.70 s, 3.00 s"`` (at most ``shown``, then
     ``"and N more"``)."""
-    edges = np.diff(np.concatenate([[0], mask.astype(int), [0]]))
-    starts, stops = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1) - 1
+    runs = stretches(mask)
     text = [
-        f"{times[a]:.2f} s" if a == b else f"{times[a]:.2f}-{times[b]:.2f} s"
-        for a, b in zip(starts[:shown], stops[:shown])
+        f"{times[a]:.2f} s" if b - a == 1 else f"{times[a]:.2f}-{times[b - 1]:.2f} s" for a, b in runs[:shown]
     ]
-    more = f" and {len(starts) - shown} more" if len(starts) > shown else ""
+    more = f" and {len(runs) - shown} more" if len(runs) > shown else ""
     return ", ".join(text) + more
 
 

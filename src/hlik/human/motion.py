@@ -305,6 +305,12 @@ def _rotations(t: np.ndarray, rot: np.ndarray, t_new: np.ndarray) -> np.ndarray:
     return RotationSpline(t, Rotation.from_matrix(rot))(np.clip(t_new, t[0], t[-1])).as_matrix()
 
 
+def stretches(mask: np.typing.ArrayLike) -> list[tuple[int, int]]:
+    """The runs ``[a, b)`` of consecutive True frames of ``mask`` (T,), in order."""
+    edges = np.diff(np.concatenate([[0], np.asarray(mask).astype(np.int8), [0]]))
+    return list(zip(np.flatnonzero(edges == 1).tolist(), np.flatnonzero(edges == -1).tolist()))
+
+
 def _by_stretch(
     t: np.ndarray,
     y: np.ndarray,
@@ -315,9 +321,7 @@ def _by_stretch(
     if known.all():
         return fit(t, y, t_new)
     out = np.full((len(t_new), *y.shape[1:]), np.nan)
-    # stretches [a, b) of consecutive known frames
-    edges = np.diff(np.concatenate([[0], known.astype(np.int8), [0]]))
-    for a, b in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)):
+    for a, b in stretches(known):
         inside = (t_new >= t[a]) & (t_new <= t[b - 1])
         if not inside.any():
             continue

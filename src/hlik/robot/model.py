@@ -2,10 +2,9 @@
 
 from __future__ import annotations
 
-import difflib
 import math
 import re
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
@@ -22,7 +21,7 @@ from hlik.robot.model_file import ModelFile, compile_model
 from hlik.util.errors import HlikError, MotionFormatError, RobotError
 from hlik.util.paths import robots_dir
 from hlik.util.spatial import site_poses
-from hlik.util.tomlfile import read_toml, unknown_key
+from hlik.util.tomlfile import did_you_mean, read_toml, unknown_key
 
 if TYPE_CHECKING:  # scipy comes with the motion; `hlik robots` needs none
     from hlik.human.motion import HumanMotion
@@ -373,8 +372,7 @@ def _manipulability(
             site_name = f"{side}_{manip_site if site == 'manipulability' else site}"
             if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, site_name) < 0 and site == "manipulability":
                 sites = [model.site(i).name.removeprefix(f"{side}_") for i in range(model.nsite)]
-                close = difflib.get_close_matches(manip_site, sites, n=1)
-                hint = f" (did you mean {close[0]!r}?)" if close else ""
+                hint = did_you_mean(manip_site, sites)
                 raise RobotError(
                     f"{path}: [manipulability] site {manip_site!r}: {mjcf.name} has no site {site_name}{hint}"
                 )
@@ -452,6 +450,8 @@ def _home(
 def _mapping(path: Path, desc: dict, names: tuple[str, ...]) -> JointMapping:
     """The ``[mapping.left]``/``[mapping.right]`` tables, checked entry by entry."""
     table = _table(path, desc, "mapping", required=False)
+    human = human_model(1.0)
+    mmm = [human.joint(i).name for i in range(human.njnt)]
     for side in table:
         if side not in SIDES:
             raise RobotError(f"{path}: unknown table [mapping.{side}]; choose from: {', '.join(SIDES)}")
@@ -467,7 +467,7 @@ def _mapping(path: Path, desc: dict, names: tuple[str, ...]) -> JointMapping:
                 raise RobotError(f"{path}: {where}: unknown key {extra[0]!r}; choose from: mmm, a, b, offset")
             if "mmm" in entry and not isinstance(entry["mmm"], str):
                 raise RobotError(f"{path}: {where} mmm must be an MMM joint name, got {entry['mmm']!r}")
-            _check_mmm(path, entry.get("mmm"), f"{where} mmm")
+            _check_mmm(path, entry.get("mmm"), f"{where} mmm", mmm)
             for key in ("a", "b"):
                 _number(path, entry.get(key, 0.0), f"{where} {key}")
             offset = entry.get("offset")
@@ -475,7 +475,7 @@ def _mapping(path: Path, desc: dict, names: tuple[str, ...]) -> JointMapping:
                 continue
             if not isinstance(offset, dict) or not isinstance(offset.get("mmm"), str):
                 raise RobotError(f"{path}: {where} offset must be a table {{ mmm = ..., gain = ... }}")
-            _check_mmm(path, offset["mmm"], f"{where} offset mmm")
+            _check_mmm(path, offset["mmm"], f"{where} offset mmm", mmm)
             _number(path, offset.get("gain"), f"{where} offset gain")
             if "fold" in offset:
                 fold = offset["fold"]
@@ -484,14 +484,11 @@ def _mapping(path: Path, desc: dict, names: tuple[str, ...]) -> JointMapping:
     return JointMapping.from_table(table)
 
 
-def _check_mmm(path: Path, joint: str | None, where: str) -> None:
-    """Refuse an MMM joint name the MMM model does not have (before any motion is read, which
-    would otherwise be blamed for lacking it)."""
-    model = human_model(1.0)
-    known = [model.joint(i).name for i in range(model.njnt)]
+def _check_mmm(path: Path, joint: str | None, where: str, known: Sequence[str]) -> None:
+    """Refuse an MMM joint name the MMM model does not have (``known``, its joints), before any
+    motion is read, which would otherwise be blamed for lacking it."""
     if joint is not None and joint not in known:
-        close = difflib.get_close_matches(joint, known, n=1)
-        hint = f" (did you mean {close[0]!r}?)" if close else ""
+        hint = did_you_mean(joint, known)
         raise RobotError(f"{path}: {where}: {joint!r} is not a joint of the MMM model{hint}")
 
 

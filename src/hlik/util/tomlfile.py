@@ -49,8 +49,8 @@ def unknown_key(
     table: Mapping, allowed: Iterable[str], where: str, renamed: Mapping[str, str] | None = None
 ) -> str | None:
     """None if every key of ``table`` is ``allowed``; else the problem with the first unknown one,
-    e.g. ``"unknown key 'placment' at the top level (did you mean 'placement'?); choose from: ..."``
-    (``where`` names the table), or the key's new name where ``renamed`` (old -> new) knows it.
+    e.g. ``"unknown key 'placment' in the top-level table (did you mean 'placement'?); choose
+    from: ..."`` (``where`` names the table), or the key's new name where ``renamed`` (old -> new) knows it.
     Every TOML reader refuses such a key with its file, since a misspelt key would otherwise leave
     its default silently in place.
     """
@@ -59,9 +59,13 @@ def unknown_key(
     if not unknown:
         return None
     key = unknown[0]
-    if renamed and renamed.get(key) in allowed:
-        hint = f" (now {renamed[key]!r})"
-    else:
-        close = difflib.get_close_matches(str(key), allowed, n=1)
-        hint = f" (did you mean {close[0]!r}?)" if close else ""
+    hint = (
+        f" (now {renamed[key]!r})" if renamed and renamed.get(key) in allowed else did_you_mean(key, allowed)
+    )
     return f"unknown key {key!r} in {where}{hint}; choose from: {', '.join(allowed)}"
+
+
+def did_you_mean(name: object, choices: Iterable[str]) -> str:
+    """``" (did you mean 'x'?)"`` with the choice closest to ``name``, or ``""`` if none is close."""
+    close = difflib.get_close_matches(str(name), list(choices), n=1)
+    return f" (did you mean {close[0]!r}?)" if close else ""
