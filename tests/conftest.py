@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hlik.robot.model import available_robots
+from hlik.robot.files import available_robots
 from hlik.util.paths import robots_dir
 
 DATA = Path(os.environ.get("HLIK_DATA", Path(__file__).resolve().parents[2] / "shared" / "motion_data"))

@@ -223,8 +223,9 @@ def test_values_that_make_no_sense_in_a_stack_name_file_table_and_key(tmp_path, 
 def test_the_cli_refuses_a_bad_stack_before_reading_the_motion(tmp_path):
     path = tmp_path / "stack.toml"
     path.write_text("[qp]\nmax_iter = 2.5\n")
-    missing = tmp_path / "no.xml"  # never read: the stack is refused first
-    one_line_error(invoke("run", missing, "--solver", "qp", "--stack", path), "stack.toml: [qp] max_iter")
+    broken = tmp_path / "broken.xml"  # there (a missing file is refused first, quickly) but never read
+    broken.write_text("<MMM><Motion")
+    one_line_error(invoke("run", broken, "--solver", "qp", "--stack", path), "stack.toml: [qp] max_iter")
 
 
 finite = st.floats(allow_nan=False, allow_infinity=False)

@@ -23,8 +23,9 @@ from hlik.problem.placement import (
     yaw_rotation,
 )
 from hlik.problem.scale import scale_subject
+from hlik.robot.files import available_robots
 from hlik.robot.floor import floor_height, lowest_points
-from hlik.robot.model import available_robots, joint_mapping, load_robot
+from hlik.robot.model import joint_mapping, load_robot
 from hlik.robot.reachability import reachability_map
 from hlik.robot.state import robot_state
 

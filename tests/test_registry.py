@@ -17,7 +17,7 @@ from hlik.metrics import costs, evaluate
 from hlik.problem.problem import build_problem
 from hlik.retarget import retarget
 from hlik.robot.state import robot_state
-from hlik.solvers import SOLVERS, SPECS, get_solver
+from hlik.solvers import SOLVER_NAMES, SPECS, get_solver
 from hlik.solvers.frames import sample_at
 from hlik.solvers.gradients import gradient, metric, part_gradients, part_metric
 from hlik.solvers.jv import JVSettings
@@ -181,7 +181,7 @@ def test_a_registered_criterion_runs_through_every_solver_and_evaluate(toy):
         "slsqp": replace(stack.settings("slsqp"), max_eval=30),
         "mink": replace(stack.settings("mink"), criterion_cost=5.0),
     }
-    for name in SOLVERS:
+    for name in SOLVER_NAMES:
         if not SPECS[name].takes_criteria:
             continue
         plain = retarget(motion, r, get_solver(name, replace(settings[name], criteria=())), learned=learned)

@@ -13,7 +13,8 @@ from hlik.cli import app
 from hlik.human.kinematics import human_model
 from hlik.human.motion import ARM_JOINTS
 from hlik.robot.calibrate import calibrate
-from hlik.robot.model import SITES, available_robots, load_robot
+from hlik.robot.files import available_robots
+from hlik.robot.model import SITES, load_robot
 
 PI = np.pi
 TABLE_I_PANDA = {  # paper Table I, 2-Panda (printed values)

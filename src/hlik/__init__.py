@@ -20,7 +20,8 @@ if TYPE_CHECKING:
     from hlik.pipeline import RunResult, RunSpec, run
     from hlik.recording import write_recording
     from hlik.retarget import retarget
-    from hlik.robot.model import Robot, available_robots, load_robot
+    from hlik.robot.files import available_robots
+    from hlik.robot.model import Robot, load_robot
     from hlik.trajectory import Trajectory, load_trajectory
     from hlik.util.errors import HlikError, MotionFormatError, RobotError, TrajectoryFormatError
     from hlik.util.paths import demo_motion_path
@@ -41,7 +42,7 @@ _WHERE = {
     "write_recording": "hlik.recording",
     "retarget": "hlik.retarget",
     "Robot": "hlik.robot.model",
-    "available_robots": "hlik.robot.model",
+    "available_robots": "hlik.robot.files",
     "load_robot": "hlik.robot.model",
     "Trajectory": "hlik.trajectory",
     "load_trajectory": "hlik.trajectory",

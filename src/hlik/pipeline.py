@@ -11,18 +11,15 @@ stage outputs to :func:`run` instead of recomputing them.
 
 from __future__ import annotations
 
-import math
 import time
-from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field, replace
-from pathlib import Path
-from types import MappingProxyType
+from collections.abc import Callable
+from dataclasses import dataclass, replace
 
 from hlik.criteria.learned import Learned, learn
-from hlik.criteria.unified import check_scenario, load_metric
+from hlik.criteria.unified import load_metric
 from hlik.findings import run_warnings
 from hlik.human.load import load_motion
-from hlik.human.motion import RATE_RANGE, HumanMotion
+from hlik.human.motion import HumanMotion
 from hlik.metrics import Evaluation, evaluate
 from hlik.placement_search import Candidate, optimize_placement
 from hlik.problem.placement import Placement, placement_from_spec, placement_notes
@@ -30,95 +27,13 @@ from hlik.problem.scale import scale_subject
 from hlik.retarget import retarget
 from hlik.robot.model import Robot, load_robot
 from hlik.robot.reachability import reachability_map
-from hlik.solvers import SOLVER_NAMES, SPECS, get_solver
-from hlik.solvers.stack_file import Stack, load_stack
+from hlik.run_spec import RunSpec
+from hlik.solvers import SPECS, get_solver
+from hlik.solvers.stack_file import Stack
 from hlik.trajectory import Trajectory
-from hlik.util.errors import HlikError
-from hlik.util.paths import demo_motion_path
 
 # (stage, done, total): what the run is doing, and how far (None, None: no count)
 Progress = Callable[[str, int | None, int | None], None]
-GRADIENTS = ("analytic", "fd")
-
-
-@dataclass(frozen=True)
-class RunSpec:
-    """What to retarget, to which robot, how.
-
-    Attributes:
-        motion: Motion file (any format :func:`hlik.human.load.load_motion` reads); None: the
-            bundled demo.
-        robot: Robot name (``hlik robots``) or path of a robot ``.toml``.
-        solver: ``jm``, ``jv``, ``qp`` or ``slsqp``.
-        stack: Task-stack ``.toml`` or a bundled stack's name; its weights and criteria.
-        criteria: Criteria replacing the stack's (None: the stack's).
-        scenario: ``pose`` or ``relative`` (None: the stack's).
-        placement: Placement rule or ``X,Y,YAW[,Z]`` (None: the robot's), ``optimize`` included.
-        scale: Subject scale, a factor or ``auto`` (None: the robot's ``subject_scale``).
-        rate: Resample the motion to this rate, Hz; 0 keeps the recorded rate.
-        span: ``(start, stop)`` s after the first frame to keep (start at most half the take,
-            stop at most its end); None: all of it.
-        corpus: Corpus folder the criteria are learned from (None: ``learn``'s default).
-        metric: Metric file with the unified metric's weights and x0 (None: Table III).
-        gradients: SLSQP's gradients, ``analytic`` or ``fd`` (finite differences, as the paper).
-        settings: Solver settings fields to override, name -> value (``bench --set``).
-    """
-
-    motion: Path | None = None
-    robot: str | Path = "armar6"
-    solver: str = "jm"
-    stack: str | Path = "ee_pose"
-    criteria: tuple[str, ...] | None = None
-    scenario: str | None = None
-    placement: str | None = None
-    scale: float | str | None = None
-    rate: float = 100.0
-    span: tuple[float, float] | None = None
-    corpus: Path | None = None
-    metric: Path | None = None
-    gradients: str = "analytic"
-    settings: Mapping[str, object] = field(default_factory=lambda: MappingProxyType({}))
-
-    @property
-    def motion_path(self) -> Path:
-        return Path(self.motion) if self.motion is not None else demo_motion_path()
-
-    def task_stack(self) -> Stack:
-        """The stack with this spec's criteria.
-
-        Raises:
-            HlikError: the stack file is missing or malformed, or names an unknown criterion.
-        """
-        stack = load_stack(self.stack)
-        return stack.with_criteria(list(self.criteria)) if self.criteria is not None else stack
-
-    def check(self) -> Stack:
-        """Every setting that can be checked without reading the motion; returns the task stack.
-
-        Raises:
-            HlikError: one line naming the setting and what it accepts.
-        """
-        if self.solver not in SOLVER_NAMES:
-            raise HlikError(f"unknown solver {self.solver!r}; choose one of: {', '.join(SOLVER_NAMES)}")
-        stack = self.task_stack()
-        if stack.criteria and not SPECS[self.solver].takes_criteria:
-            takers = ", ".join(n for n, s in SPECS.items() if s.takes_criteria)
-            raise HlikError(f"{self.solver} maps joints and cannot add criteria; choose --solver {takers}")
-        if self.gradients not in GRADIENTS:
-            raise HlikError(f"unknown gradients {self.gradients!r}; choose analytic or fd")
-        if self.gradients == "fd" and self.solver != "slsqp":
-            raise HlikError("--gradients fd is for --solver slsqp")
-        check_scenario(self.scenario or stack.scenario)
-        low, high = RATE_RANGE
-        if not (self.rate == 0 or low <= self.rate <= high):  # NaN fails both
-            raise HlikError(
-                f"--rate must be positive, {low:g} to {high:g} Hz (or 0 to keep the motion's rate), "
-                f"got {self.rate:g}"
-            )
-        _check_base_pose(self.placement)
-        if self.metric is not None:
-            load_metric(self.metric)  # read again by run(): a bad file fails before the solve
-        return stack
 
 
 @dataclass(frozen=True, eq=False)
@@ -264,18 +179,6 @@ def _counter(progress: Progress | None, stage: str) -> Callable[[int, int], None
         return None
     progress(stage, None, None)
     return lambda k, n: progress(stage, k, n)
-
-
-def _check_base_pose(spec: str | None) -> None:
-    """``X,Y,YAW[,Z]`` must be finite numbers (a NaN base pose scores NaN without a word)."""
-    if spec is None or "," not in spec:
-        return
-    try:
-        values = [float(v) for v in spec.split(",")]
-    except ValueError:
-        return  # placement_from_spec says what it expects
-    if len(values) in (3, 4) and not all(math.isfinite(v) for v in values):
-        raise HlikError(f"--placement {spec}: X, Y, YAW (and Z) must be finite numbers (m, m, deg, m)")
 
 
 __all__ = ["Progress", "RunResult", "RunSpec", "place", "read_motion", "run", "solver_settings"]

@@ -13,7 +13,7 @@ from hlik.human.motion import HumanMotion
 from hlik.problem.placement import Placement
 from hlik.problem.problem import Problem, build_problem
 from hlik.robot.model import Robot, tcp_poses
-from hlik.solvers import SOLVERS, Solver, get_solver
+from hlik.solvers import SOLVER_NAMES, Solver, get_solver
 from hlik.solvers.base import Diagnostics, SolverResult
 from hlik.trajectory import Trajectory
 from hlik.util.errors import HlikError
@@ -26,7 +26,7 @@ def retarget(
     placement: Placement | None = None,
     learned: Learned | None = None,
 ) -> Trajectory:
-    """Retarget ``motion`` to ``robot`` with ``solver``: a name in ``SOLVERS``, or a :class:`Solver`.
+    """Retarget ``motion`` to ``robot`` with ``solver``: a name in ``SOLVER_NAMES``, or a :class:`Solver`.
 
     The problem (human kinematics, placement, hand targets, human reference, the learned pieces
     of the solver's ``criteria``) is built once and handed to the solver; ``placement`` defaults
@@ -39,8 +39,8 @@ def retarget(
         HlikError: unknown solver name, or joint angles of the wrong shape.
     """
     if isinstance(solver, str):
-        if solver not in SOLVERS:
-            raise HlikError(f"unknown solver {solver!r}; choose one of: {', '.join(SOLVERS)}")
+        if solver not in SOLVER_NAMES:
+            raise HlikError(f"unknown solver {solver!r}; choose one of: {', '.join(SOLVER_NAMES)}")
         solver = get_solver(solver)
     criteria = tuple(getattr(solver, "criteria", ()))
     problem = build_problem(motion, robot, placement, learned, criteria)

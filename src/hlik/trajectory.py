@@ -25,6 +25,7 @@ from hlik.robot.model import Robot
 from hlik.solvers.base import Diagnostics
 from hlik.util.atomic import atomic_path
 from hlik.util.errors import TrajectoryFormatError
+from hlik.util.files import check_readable
 
 FORMAT = "hlik.trajectory/3"
 # format 2 files whose layout is 3's are read; those written before format 2 gained arrays (the
@@ -161,14 +162,9 @@ def _check_limits(path: str | Path, trajectory: Trajectory, robot: Robot) -> Non
 
 def _read_arrays(path: Path) -> dict[str, np.ndarray]:
     """Every array of the ``.npz`` file, read with ``allow_pickle=False``."""
+    check_readable(path, TrajectoryFormatError, "a trajectory .npz file")
     try:
         archive = np.load(path, allow_pickle=False)
-    except FileNotFoundError:
-        raise TrajectoryFormatError(f"{path}: no such file") from None
-    except IsADirectoryError:
-        raise TrajectoryFormatError(f"{path}: is a folder, expected a trajectory .npz file") from None
-    except PermissionError as e:
-        raise TrajectoryFormatError(f"{path}: cannot read ({e.strerror})") from None
     except (OSError, ValueError, EOFError, zipfile.BadZipFile):
         # NumPy falls back to unpickling what is neither .npy nor .npz; say what it is not
         raise TrajectoryFormatError(

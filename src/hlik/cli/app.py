@@ -131,6 +131,19 @@ def one_line() -> Iterator[None]:
         fail(HlikError(f"{where}{e.strerror or e}"))
 
 
+def check_trajectory_file(path: Path) -> None:
+    """Refuse a missing or unreadable trajectory before the heavy imports (one line, in a
+    fraction of a second).
+
+    Raises:
+        TrajectoryFormatError: no such file, a folder, or unreadable.
+    """
+    from hlik.util.errors import TrajectoryFormatError
+    from hlik.util.files import check_readable
+
+    check_readable(path, TrajectoryFormatError, "a trajectory .npz file")
+
+
 def trajectory_and_robot(path: Path) -> tuple[Trajectory, Robot]:
     """The trajectory ``path`` and the robot it names, checked to be that robot's.
 
@@ -138,6 +151,7 @@ def trajectory_and_robot(path: Path) -> tuple[Trajectory, Robot]:
         HlikError: the file cannot be read, its robot cannot be loaded (named as the file's), or
             its joints are not the robot's.
     """
+    check_trajectory_file(path)
     from hlik.robot.model import load_robot
     from hlik.trajectory import check_robot, load_trajectory
     from hlik.util.errors import RobotError

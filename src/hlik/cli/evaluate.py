@@ -14,6 +14,7 @@ from hlik.cli.app import (
     CorpusOpt,
     MetricOpt,
     ScenarioOpt,
+    check_trajectory_file,
     console,
     one_line,
     trajectory_and_robot,
@@ -34,11 +35,12 @@ def evaluate(
     """Human-likeness criteria h_i and scores m_i, m_hl, m_f and m_hl,f of a trajectory."""
     import json
 
-    from hlik.criteria.learned import learn
-    from hlik.criteria.unified import check_scenario, load_metric, midpoints
-    from hlik.metrics import evaluate as evaluate_trajectory
-
     with one_line():
+        check_trajectory_file(trajectory)
+        from hlik.criteria.learned import learn
+        from hlik.criteria.unified import check_scenario, load_metric, midpoints
+        from hlik.metrics import evaluate as evaluate_trajectory
+
         check_scenario(scenario)
         unified_metric = load_metric(metric) if metric is not None else None
         traj, r = trajectory_and_robot(trajectory)

@@ -8,7 +8,7 @@ from typing import Annotated
 
 import typer
 
-from hlik.cli.app import FLAG, console, one_line, trajectory_and_robot
+from hlik.cli.app import FLAG, check_trajectory_file, console, one_line, trajectory_and_robot
 from hlik.util.errors import HlikError
 
 
@@ -34,10 +34,11 @@ def export(
     """Export a trajectory (joint angles by name, time, base pose) for a robot's software; refused,
     naming the first frame and joint, where a controller would reject it (a joint out of range or
     over its speed, acceleration or effort limit)."""
-    from hlik.export import WRITERS
-    from hlik.export import export as export_trajectory
-
     with one_line():
+        check_trajectory_file(trajectory)
+        from hlik.export import WRITERS
+        from hlik.export import export as export_trajectory
+
         if fmt not in WRITERS:
             raise HlikError(f"unknown export format {fmt!r}; choose one of: {', '.join(WRITERS)}")
         suffix = WRITERS[fmt][1]

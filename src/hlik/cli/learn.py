@@ -25,7 +25,8 @@ def learn(
     import numpy as np
 
     from hlik.criteria.learned import learn as learn_robot
-    from hlik.robot.model import available_robots, load_robot
+    from hlik.robot.files import available_robots
+    from hlik.robot.model import load_robot
     from hlik.util.paths import cache_dir
 
     paper = {"armar3": 7.25, "armar6": 8.76, "dual_panda": 4.7}

@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from hlik.cli.app import console, one_line, trajectory_and_robot
+from hlik.cli.app import check_trajectory_file, console, one_line, trajectory_and_robot
 
 
 def replay(
@@ -16,10 +16,11 @@ def replay(
     """Play a trajectory through MuJoCo's physics under a torque controller within the motors'
     efforts; report how far each simulated TCP is from the commanded one, the joints at their
     effort or speed limits, and contacts."""
-    from hlik.replay import BANDWIDTH, SUBSTEPS
-    from hlik.replay import replay as play
-
     with one_line():
+        check_trajectory_file(trajectory)
+        from hlik.replay import BANDWIDTH, SUBSTEPS
+        from hlik.replay import replay as play
+
         traj, robot = trajectory_and_robot(trajectory)
         result = play(traj, robot)
     console.print(

@@ -14,8 +14,9 @@ from hlik.util.errors import HlikError
 from hlik.util.paths import corpus_setting
 
 if TYPE_CHECKING:  # imported where used: `hlik --help` stays quick
-    from hlik.pipeline import RunResult, RunSpec
+    from hlik.pipeline import RunResult
     from hlik.robot.model import Robot
+    from hlik.run_spec import RunSpec
 
 from hlik.cli.app import (
     FLAG,
@@ -115,10 +116,8 @@ def run(
     metric: MetricOpt = None,
 ) -> None:
     """Retarget a motion to a robot; write a Rerun recording and the trajectory (.npz) beside it."""
-    from hlik.pipeline import RunSpec
-    from hlik.pipeline import run as run_pipeline
-    from hlik.recording import LAYOUTS
-    from hlik.robot.model import load_robot
+    from hlik.recording.layout import LAYOUTS
+    from hlik.run_spec import RunSpec
 
     with one_line():
         corpus, corpus_source = (corpus, "--corpus") if corpus is not None else corpus_setting()
@@ -139,7 +138,10 @@ def run(
         )
         if layout not in LAYOUTS:
             raise HlikError(f"unknown layout {layout!r}; choose one of: {', '.join(LAYOUTS)}")
-        spec.check()
+        spec.check()  # names, numbers and files before the heavy imports below
+        from hlik.pipeline import run as run_pipeline
+        from hlik.robot.model import load_robot
+
         r = load_robot(robot)
         stem = file_stem(spec.motion_path.stem, r.name, _tag(spec, r, layout))
         rrd = out or Path("recordings") / f"{stem}.rrd"

@@ -70,9 +70,7 @@ def study(
     corpus: CorpusOpt = None,
 ) -> None:
     """The paper's study: retarget, correlate the criteria, derive the metric, rank the approaches."""
-    from hlik.robot.model import robot_toml
-    from hlik.study.approaches import PAPER, load_approaches
-    from hlik.study.runner import plan, run_study
+    from hlik.robot.files import robot_toml
 
     folder = takes or _default_takes()
     with one_line():
@@ -86,6 +84,9 @@ def study(
             raise HlikError(f"unknown robot {robots!r}; see `hlik robots`")
         for name in names:
             robot_toml(name)  # a bundled name or a path of a .toml; the message lists the known ones
+        from hlik.study.approaches import PAPER, load_approaches
+        from hlik.study.runner import plan, run_study
+
         listed = load_approaches(approaches or PAPER)
         n_cells = len(plan(files, names, listed, seconds))
         console.print(

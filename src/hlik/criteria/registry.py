@@ -2,25 +2,44 @@
 and the recording read.
 
 Adding a criterion is one module (a :class:`~hlik.criteria.base.Criterion` subclass with its name,
-Table II/III constants, residual, Jacobian and cost) and one :func:`register` call, here or in user
-code.
+Table II/III constants, residual, Jacobian and cost) and one line in ``_BUILTIN`` here, or one
+:func:`register` call in user code.
 """
 
 from __future__ import annotations
 
 from collections.abc import Iterable
+from importlib import import_module
+from typing import TYPE_CHECKING
 
-from hlik.criteria.base import Criterion
-from hlik.criteria.eea import EEA, EEA_r
-from hlik.criteria.functional import fORI, fORI_off, fPOS, fPOS_off
-from hlik.criteria.joints import HJL, HJA_r, fJLA
-from hlik.criteria.manipulability import MAN_r
-from hlik.criteria.smoothness import MJE
-from hlik.criteria.soechting import SOA_q, SOA_x
-from hlik.criteria.synergy import MIS, SYN, SYN_r
 from hlik.util.errors import SettingsError, UnknownNameError
 
-_CRITERIA: dict[str, type[Criterion]] = {}
+if TYPE_CHECKING:
+    from hlik.criteria.base import Criterion
+
+# The built-in criteria, the paper's first: name -> (module, functional). A module is imported
+# when its criterion is first used, so that a name is checked (the CLI does, before anything
+# runs) without loading SciPy and MuJoCo; the class is the module's attribute of that name.
+_BUILTIN: dict[str, tuple[str, bool]] = {
+    "EEA": ("eea", False),
+    "SOA_x": ("soechting", False),
+    "SOA_q": ("soechting", False),
+    "HJL": ("joints", False),
+    "SYN": ("synergy", False),
+    "MIS": ("synergy", False),
+    "MJE": ("smoothness", False),
+    "HJA_r": ("joints", False),
+    "SYN_r": ("synergy", False),
+    "EEA_r": ("eea", False),
+    "MAN_r": ("manipulability", False),
+    "fJLA": ("joints", True),
+    "fPOS": ("functional", True),
+    "fORI": ("functional", True),
+    "fPOS_off": ("functional", True),
+    "fORI_off": ("functional", True),
+}
+_FUNCTIONAL: dict[str, bool] = {n: f for n, (_, f) in _BUILTIN.items()}  # every name, in order
+_CRITERIA: dict[str, type[Criterion]] = {}  # the classes imported or registered so far
 
 
 def register(cls: type[Criterion]) -> type[Criterion]:
@@ -29,39 +48,42 @@ def register(cls: type[Criterion]) -> type[Criterion]:
     Raises:
         ValueError: the name is taken by another class.
     """
-    known = _CRITERIA.get(cls.name)
+    known = criterion_class(cls.name) if cls.name in _FUNCTIONAL else None
     if known is not None and known is not cls:
         raise SettingsError(f"a criterion named {cls.name!r} is registered already ({known.__qualname__})")
     _CRITERIA[cls.name] = cls
+    _FUNCTIONAL[cls.name] = cls.functional
     return cls
 
 
 def unregister(name: str) -> None:
     """Remove the criterion called ``name`` (no error if absent)."""
     _CRITERIA.pop(name, None)
+    _FUNCTIONAL.pop(name, None)
 
 
 def human_likeness() -> tuple[str, ...]:
     """Names of the human-likeness criteria, in registration order (the paper's first)."""
-    return tuple(n for n, c in _CRITERIA.items() if not c.functional)
+    return tuple(n for n, f in _FUNCTIONAL.items() if not f)
 
 
 def functional() -> tuple[str, ...]:
     """Names of the functional criteria (fJLA, fPOS, fORI, fPOS_off, fORI_off)."""
-    return tuple(n for n, c in _CRITERIA.items() if c.functional)
+    return tuple(n for n, f in _FUNCTIONAL.items() if f)
 
 
 def criterion_class(name: str) -> type[Criterion]:
     """The class registered as ``name``.
 
     Raises:
-        KeyError: with the known human-likeness criteria in the message.
+        UnknownNameError: with the known human-likeness criteria in the message.
     """
-    try:
-        return _CRITERIA[name]
-    except KeyError:
-        known = ", ".join(human_likeness())
-        raise UnknownNameError(f"unknown criterion {name!r}; choose from: {known}") from None
+    if name not in _FUNCTIONAL:
+        raise UnknownNameError(f"unknown criterion {name!r}; choose from: {', '.join(human_likeness())}")
+    if name not in _CRITERIA:
+        module, _ = _BUILTIN[name]
+        _CRITERIA[name] = getattr(import_module(f"hlik.criteria.{module}"), name)
+    return _CRITERIA[name]
 
 
 def criterion(name: str, robot: object, learned: object | None = None) -> Criterion:
@@ -85,24 +107,3 @@ def criterion(name: str, robot: object, learned: object | None = None) -> Criter
 def learns(names: Iterable[str]) -> bool:
     """True if any of the criteria ``names`` is built from a learned piece."""
     return any(criterion_class(n).learned is not None for n in names)
-
-
-for _cls in (
-    EEA,
-    SOA_x,
-    SOA_q,
-    HJL,
-    SYN,
-    MIS,
-    MJE,
-    HJA_r,
-    SYN_r,
-    EEA_r,
-    MAN_r,
-    fJLA,
-    fPOS,
-    fORI,
-    fPOS_off,
-    fORI_off,
-):
-    register(_cls)

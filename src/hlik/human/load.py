@@ -4,9 +4,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from hlik.human.formats import motion_format
 from hlik.human.mmm_format import read_mmm
 from hlik.human.motion import HumanMotion
-from hlik.util.errors import MotionFormatError
 
 
 def load_motion(path: str | Path, rate: float | None = None) -> HumanMotion:
@@ -23,19 +23,18 @@ def load_motion(path: str | Path, rate: float | None = None) -> HumanMotion:
     motion's ``notes``, one line each.
 
     Raises:
-        hlik.util.errors.MotionFormatError: the file is missing, malformed, inconsistent or implausible.
+        hlik.util.errors.MotionFormatError: the file is missing, in a format hlik does not read
+            (:func:`hlik.human.formats.motion_format`), malformed, inconsistent or implausible.
         hlik.util.errors.SettingsError: ``rate`` is outside 1-10000 Hz, or the resampled motion would
             have more than 10^6 frames.
     """
     path = Path(path)
-    suffix = path.suffix.lower()
-    if suffix in (".toml", ".bvh"):
+    kind = motion_format(path)
+    if kind == "mmm":
+        motion = read_mmm(path)
+    else:
         from hlik.human.fit import fit_mmm
         from hlik.human.keypoints import read_bvh, read_keypoints
 
-        if not path.is_file():
-            raise MotionFormatError(path, "no such file")
-        motion = fit_mmm(read_keypoints(path) if suffix == ".toml" else read_bvh(path))
-    else:
-        motion = read_mmm(path)
+        motion = fit_mmm(read_keypoints(path) if kind == "keypoints" else read_bvh(path))
     return motion if rate is None else motion.resample(rate)

@@ -17,6 +17,8 @@ import numpy as np
 from scipy.interpolate import CubicSpline, make_interp_spline
 from scipy.spatial.transform import Rotation, RotationSpline, Slerp
 
+from hlik.human.limits import MAX_FRAMES as MAX_FRAMES  # re-exported: the readers check them
+from hlik.human.limits import RATE_RANGE as RATE_RANGE
 from hlik.util.errors import SettingsError, UnknownNameError
 
 # The 14 MMM arm joints every motion must carry (kinematics.md §1.2), proximal -> distal, in the
@@ -46,12 +48,6 @@ ARM_RANGES: dict[str, tuple[float, float]] = {
     "RWy_joint": (-1.5708, 1.22173),
 }
 
-# Frame rates a motion may have, Hz: below, it is no motion capture; above, the timesteps are not
-# seconds (or not a clock at all).
-RATE_RANGE = (1.0, 10_000.0)
-# Most frames a resampled motion may have: a run needs about 1.1 GB per 60 000 frames (issue 15),
-# so 10^6 frames would need some 18 GB.
-MAX_FRAMES = 1_000_000
 
 _MIRROR = np.diag([-1.0, 1.0, 1.0])  # reflection through the sagittal plane (x = right)
 

@@ -28,11 +28,45 @@ Timelines: ``frame`` (index) and ``time`` (seconds). Everything time-varying goe
 more memory than a short one to draw; log time is disabled so the same input gives the same file.
 """
 
-from hlik.recording.panel import summary
-from hlik.recording.scene import object_label
-from hlik.recording.style import CHUNK_FRAMES, LAYOUTS, SCORE_WINDOW, score_window
-from hlik.recording.view import ASPECT, FRAME_TAN, Camera, blueprint, joint_groups, robot_camera, scene_camera
-from hlik.recording.write import write_recording
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from hlik.util.lazy import lazy_getattr
+
+if TYPE_CHECKING:
+    from hlik.recording.panel import summary
+    from hlik.recording.scene import object_label
+    from hlik.recording.style import CHUNK_FRAMES, LAYOUTS, SCORE_WINDOW, score_window
+    from hlik.recording.view import (
+        ASPECT,
+        FRAME_TAN,
+        Camera,
+        blueprint,
+        joint_groups,
+        robot_camera,
+        scene_camera,
+    )
+    from hlik.recording.write import write_recording
+
+# Imported on first use (PEP 562): `--layout` is checked before Rerun loads.
+_WHERE = {
+    "summary": "hlik.recording.panel",
+    "object_label": "hlik.recording.scene",
+    "CHUNK_FRAMES": "hlik.recording.style",
+    "LAYOUTS": "hlik.recording.layout",
+    "SCORE_WINDOW": "hlik.recording.style",
+    "score_window": "hlik.recording.style",
+    "ASPECT": "hlik.recording.view",
+    "FRAME_TAN": "hlik.recording.view",
+    "Camera": "hlik.recording.view",
+    "blueprint": "hlik.recording.view",
+    "joint_groups": "hlik.recording.view",
+    "robot_camera": "hlik.recording.view",
+    "scene_camera": "hlik.recording.view",
+    "write_recording": "hlik.recording.write",
+}
+__getattr__ = lazy_getattr(__name__, _WHERE, globals())
 
 __all__ = [
     "ASPECT",

@@ -6,12 +6,12 @@ from __future__ import annotations
 import numpy as np
 import rerun as rr
 
+from hlik.recording.layout import LAYOUTS as LAYOUTS  # re-exported
+from hlik.recording.layout import SPACING as SPACING
 from hlik.trajectory import Trajectory
 
-LAYOUTS = ("side", "overlay")
 SIDE_COLORS = {"left": (66, 133, 244), "right": (244, 140, 40)}
 TARGET_COLORS = {"left": (120, 200, 255), "right": (255, 200, 120)}
-SPACING = 1.2  # m between human and robot shoulders in the side-by-side layout
 
 _FILL = rr.components.FillMode.Solid
 

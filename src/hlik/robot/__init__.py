@@ -16,7 +16,8 @@ from typing import TYPE_CHECKING
 from hlik.util.lazy import lazy_getattr
 
 if TYPE_CHECKING:
-    from hlik.robot.model import SIDES, SITES, Robot, available_robots, joint_mapping, load_robot, tcp_poses
+    from hlik.robot.files import available_robots
+    from hlik.robot.model import SIDES, SITES, Robot, joint_mapping, load_robot, tcp_poses
     from hlik.robot.state import RobotState, robot_state
 
 # Imported on first use (PEP 562), so that importing one module of the package stays cheap.
@@ -24,7 +25,7 @@ _WHERE = {
     "SIDES": "hlik.robot.model",
     "SITES": "hlik.robot.model",
     "Robot": "hlik.robot.model",
-    "available_robots": "hlik.robot.model",
+    "available_robots": "hlik.robot.files",
     "joint_mapping": "hlik.robot.model",
     "load_robot": "hlik.robot.model",
     "tcp_poses": "hlik.robot.model",

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from functools import cached_property
@@ -14,6 +13,7 @@ import mujoco
 import numpy as np
 
 from hlik.human.kinematics import human_model
+from hlik.robot.files import NAME, robot_toml
 from hlik.robot.mapping import JointMapping
 from hlik.robot.model_file import COLLISION_GROUP as COLLISION_GROUP  # re-exported: models' geom groups
 from hlik.robot.model_file import VISUAL_GROUP as VISUAL_GROUP
@@ -26,8 +26,6 @@ from hlik.util.tomlfile import did_you_mean, read_toml, unknown_key
 if TYPE_CHECKING:  # scipy comes with the motion; `hlik robots` needs none
     from hlik.human.motion import HumanMotion
 
-# A robot's name names its files (caches, recordings): no separators, no "..".
-NAME = re.compile(r"[A-Za-z0-9_-]+")
 
 SIDES = ("left", "right")
 # Per arm: joint centres, the tracking TCP, and the frame whose velocity manipulability MAN^r reads
@@ -179,29 +177,6 @@ def tcp_poses(robot: Robot, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(T, 2, 3) positions and (T, 2, 3, 3) rotations of both TCPs for joint angles (T, n)."""
     ids = np.array([robot.site_id(s, "tcp") for s in SIDES])
     return site_poses(robot.model, q, ids)
-
-
-def available_robots() -> tuple[str, ...]:
-    """Names of the bundled robots."""
-    return tuple(sorted(p.stem for p in robots_dir().glob("*.toml")))
-
-
-def robot_toml(name: str) -> Path:
-    """The description file of a bundled robot's name, or of a path ending in ``.toml``.
-
-    Raises:
-        hlik.util.errors.RobotError: no such robot or file.
-    """
-    by_path = name.endswith(".toml")
-    path = Path(name) if by_path else robots_dir() / f"{name}.toml"
-    if not path.is_file() or not (by_path or NAME.fullmatch(name)):
-        if by_path and path.exists():
-            raise RobotError(f"{path}: is a folder, expected a robot .toml file")
-        if by_path:
-            raise RobotError(f"{path}: no such robot description")
-        known = ", ".join(available_robots())
-        raise RobotError(f"unknown robot {name!r}; choose one of: {known}")
-    return path
 
 
 def load_robot(name: str, need_mapping: bool = True) -> Robot:

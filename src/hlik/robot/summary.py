@@ -46,7 +46,8 @@ def robot_summaries() -> list[RobotSummary]:
                 return [_summary(entry) for entry in stored["robots"]]
         except (OSError, ValueError, KeyError, TypeError):
             pass  # no entry, or not one of ours: load the robots
-    from hlik.robot.model import available_robots, load_robot
+    from hlik.robot.files import available_robots
+    from hlik.robot.model import load_robot
 
     summaries = []
     for name in available_robots():

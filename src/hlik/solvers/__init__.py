@@ -17,65 +17,25 @@ Beside them: :mod:`~hlik.solvers.mink_tasks` (criteria as mink tasks and limits)
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
-from types import MappingProxyType
+from typing import TYPE_CHECKING
 
-from hlik.solvers import jm, jv, mink_stack, qp, slsqp
-from hlik.solvers.base import Diagnostics, Solver, SolverResult
-from hlik.solvers.settings import SolverSettings, SolverSpec
-from hlik.util.errors import UnknownNameError
+from hlik.solvers.catalog import SOLVER_NAMES, SPECS, SolverSpec, check_solver, get_solver, solver_spec
+from hlik.util.lazy import lazy_getattr
 
-# The solvers by name; a new solver adds one line here.
-SPECS: Mapping[str, SolverSpec] = MappingProxyType(
-    {
-        s.name: s
-        for s in (
-            SolverSpec("jm", jm.jm_solver, None, takes_criteria=False, tracks_targets=False),
-            SolverSpec("jv", jv.jv_solver, jv.JVSettings),
-            SolverSpec("qp", qp.qp_solver, qp.QPSettings),
-            SolverSpec("slsqp", slsqp.slsqp_solver, slsqp.SLSQPSettings),
-            SolverSpec("mink", mink_stack.mink_solver, mink_stack.MinkSettings),
-        )
-    }
-)
-# name -> factory(settings, progress)
-SOLVERS: Mapping[str, Callable[..., Solver]] = MappingProxyType({n: s.factory for n, s in SPECS.items()})
-SOLVER_NAMES = tuple(SOLVERS)
+if TYPE_CHECKING:
+    from hlik.solvers.base import Diagnostics, Solver, SolverResult
+    from hlik.solvers.settings import SolverSettings
 
-
-def solver_spec(name: str) -> SolverSpec:
-    """The :class:`SolverSpec` of solver ``name``; a solver hlik does not know by name (a user's
-    function, a mink stack) is one that tracks the targets and takes no criteria of hlik's.
-
-    Use it for what a solver can do, not its name."""
-    return SPECS.get(name) or SolverSpec(name, _unknown(name), None, takes_criteria=False)
-
-
-def _unknown(name: str) -> Callable[..., Solver]:
-    def factory(*args: object, **kwargs: object) -> Solver:
-        raise UnknownNameError(f"unknown solver {name!r}; choose one of: {', '.join(SOLVERS)}")
-
-    return factory
-
-
-def get_solver(
-    name: str, settings: object | None = None, progress: Callable[[int], None] | None = None
-) -> Solver:
-    """The solver called ``name`` with ``settings`` (its settings class; default: the defaults);
-    ``progress(k)`` is called after each frame ``k``. The learned pieces of its criteria come with
-    the problem (:func:`hlik.problem.build_problem`).
-
-    Raises:
-        UnknownNameError: unknown name.
-    """
-    if name not in SOLVERS:
-        raise UnknownNameError(f"unknown solver {name!r}; choose one of: {', '.join(SOLVERS)}")
-    factory = SOLVERS[name]
-    return factory(settings, progress) if settings is not None else factory(progress=progress)
-
+# Imported on first use (PEP 562): the catalogue answers a solver name without loading a solver.
+_WHERE = {
+    "Diagnostics": "hlik.solvers.base",
+    "Solver": "hlik.solvers.base",
+    "SolverResult": "hlik.solvers.base",
+    "SolverSettings": "hlik.solvers.settings",
+}
+__getattr__ = lazy_getattr(__name__, _WHERE, globals())
 
 __all__ = [
-    "SOLVERS",
     "SOLVER_NAMES",
     "SPECS",
     "Diagnostics",
@@ -83,6 +43,7 @@ __all__ = [
     "SolverResult",
     "SolverSettings",
     "SolverSpec",
+    "check_solver",
     "get_solver",
     "solver_spec",
 ]

@@ -1,13 +1,11 @@
-"""What every optimising solver is told (:class:`SolverSettings`), and what each solver is
-(:class:`SolverSpec`: its factory, settings class and capabilities), so that code outside the
-solvers asks a solver's spec instead of testing its name."""
+"""What every optimising solver is told (:class:`SolverSettings`); what each solver is and can do
+is its :class:`~hlik.solvers.catalog.SolverSpec`."""
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
-from hlik.solvers.base import Solver
 from hlik.solvers.limits import LimitSettings
 
 
@@ -34,23 +32,3 @@ class SolverSettings(LimitSettings):
     self_collision: bool = True
     collision_margin: float = 0.01
     collision_detect: float = 0.10
-
-
-@dataclass(frozen=True)
-class SolverSpec:
-    """One solver hlik knows by name.
-
-    Attributes:
-        name: ``jm``, ``jv``, ``qp``, ``slsqp``.
-        factory: ``factory(settings, progress) -> Solver``.
-        settings: Its settings class (a :class:`SolverSettings`), None where it takes none.
-        takes_criteria: It can add human-likeness criteria.
-        tracks_targets: It follows the hand targets (JM maps the joint angles instead: it is not
-            warned about lagging hands or speeds it never promised to keep).
-    """
-
-    name: str
-    factory: Callable[..., Solver]
-    settings: type[SolverSettings] | None
-    takes_criteria: bool = True
-    tracks_targets: bool = True

@@ -18,7 +18,7 @@ from pathlib import Path
 from types import MappingProxyType
 
 from hlik.criteria import registry
-from hlik.robot.model import available_robots
+from hlik.robot.files import available_robots
 from hlik.util.errors import SettingsError
 from hlik.util.paths import tasks_dir
 from hlik.util.tomlfile import read_toml, unknown_key
@@ -51,7 +51,7 @@ class Stack:
 
     def with_criteria(self, criteria: Sequence[str]) -> Stack:
         """The same stack with other criteria."""
-        _check_criteria(tuple(criteria), self.name)
+        check_criteria(tuple(criteria), self.name)
         return dataclasses.replace(self, criteria=tuple(criteria))
 
     def settings(self, solver: str, robot: str | None = None):
@@ -121,7 +121,7 @@ def _parse(raw: dict, path: Path) -> Stack:
     criteria = raw.get("criteria", [])
     if not isinstance(criteria, list) or not all(isinstance(c, str) for c in criteria):
         raise SettingsError(f'{path}: criteria must be a list of names, e.g. ["SYN", "HJA_r"]')
-    _check_criteria(tuple(criteria), path)
+    check_criteria(tuple(criteria), path)
     gamma = _gamma(raw.get("gamma", {}), path, "gamma")
     solvers, robots = {}, {}
     for solver in (s for s in SOLVER_TABLES if s in raw):
@@ -189,7 +189,7 @@ def _gamma(table: object, path: Path, where: str) -> Mapping[str, float]:
     if not isinstance(table, dict):
         raise SettingsError(f"{path}: [{where}] must be a table of criterion = number")
     for name in table:
-        _check_criteria((name,), path)
+        check_criteria((name,), path)
     values = {name: _number(v, path, f"{where}.{name}") for name, v in table.items()}
     for name, v in values.items():
         if not (math.isfinite(v) and v >= 0):
@@ -211,7 +211,10 @@ def _check_keys(table: dict, allowed: set[str], path: Path, where: str) -> None:
         raise SettingsError(f"{path}: {problem}")
 
 
-def _check_criteria(criteria: tuple[str, ...], where: object) -> None:
+def check_criteria(criteria: tuple[str, ...], where: object) -> None:
+    """Raises:
+    SettingsError: a criterion listed twice, or one that is no human-likeness criterion
+        (``where`` begins the message)."""
     twice = sorted({c for c in criteria if criteria.count(c) > 1})
     if twice:
         raise SettingsError(f"{where}: criterion {', '.join(twice)} listed twice")

@@ -1,0 +1,132 @@
+"""What one retargeting run is (:class:`RunSpec`), checked whole before anything is read.
+
+This module imports nothing heavy: :meth:`RunSpec.check` answers a typo (an unknown solver, robot,
+criterion or format, a rate out of range, a missing file) before NumPy, MuJoCo or SciPy load, so
+the CLI's usage errors take a fraction of a second. :func:`hlik.pipeline.run` runs a spec.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from types import MappingProxyType
+
+from hlik.human.formats import motion_format
+from hlik.human.limits import RATE_RANGE
+from hlik.robot.files import robot_toml
+from hlik.solvers.catalog import SPECS, check_solver
+from hlik.solvers.stack_file import SCENARIOS, Stack, check_criteria, load_stack
+from hlik.util.errors import HlikError, SettingsError
+from hlik.util.paths import demo_motion_path
+
+GRADIENTS = ("analytic", "fd")
+
+
+@dataclass(frozen=True)
+class RunSpec:
+    """What to retarget, to which robot, how.
+
+    Attributes:
+        motion: Motion file (any format :func:`hlik.human.load.load_motion` reads); None: the
+            bundled demo.
+        robot: Robot name (``hlik robots``) or path of a robot ``.toml``.
+        solver: ``jm``, ``jv``, ``qp`` or ``slsqp``.
+        stack: Task-stack ``.toml`` or a bundled stack's name; its weights and criteria.
+        criteria: Criteria replacing the stack's (None: the stack's).
+        scenario: ``pose`` or ``relative`` (None: the stack's).
+        placement: Placement rule or ``X,Y,YAW[,Z]`` (None: the robot's), ``optimize`` included.
+        scale: Subject scale, a factor or ``auto`` (None: the robot's ``subject_scale``).
+        rate: Resample the motion to this rate, Hz; 0 keeps the recorded rate.
+        span: ``(start, stop)`` s after the first frame to keep (start at most half the take,
+            stop at most its end); None: all of it.
+        corpus: Corpus folder the criteria are learned from (None: ``learn``'s default).
+        metric: Metric file with the unified metric's weights and x0 (None: Table III).
+        gradients: SLSQP's gradients, ``analytic`` or ``fd`` (finite differences, as the paper).
+        settings: Solver settings fields to override, name -> value (``bench --set``).
+    """
+
+    motion: Path | None = None
+    robot: str | Path = "armar6"
+    solver: str = "jm"
+    stack: str | Path = "ee_pose"
+    criteria: tuple[str, ...] | None = None
+    scenario: str | None = None
+    placement: str | None = None
+    scale: float | str | None = None
+    rate: float = 100.0
+    span: tuple[float, float] | None = None
+    corpus: Path | None = None
+    metric: Path | None = None
+    gradients: str = "analytic"
+    settings: Mapping[str, object] = field(default_factory=lambda: MappingProxyType({}))
+
+    @property
+    def motion_path(self) -> Path:
+        return Path(self.motion) if self.motion is not None else demo_motion_path()
+
+    def task_stack(self) -> Stack:
+        """The stack with this spec's criteria.
+
+        Raises:
+            HlikError: the stack file is missing or malformed, or names an unknown criterion.
+        """
+        stack = load_stack(self.stack)
+        return stack.with_criteria(list(self.criteria)) if self.criteria is not None else stack
+
+    def check(self) -> Stack:
+        """Every setting that can be checked without reading the motion; returns the task stack.
+
+        Names, numbers and files first, with nothing heavy imported (a typo is answered in a
+        fraction of a second, ``bench/cli_errors.py``); then the stack file's contents and the
+        metric file, which load the solvers' settings classes.
+
+        Raises:
+            HlikError: one line naming the setting (or file) and what it accepts.
+        """
+        solver = check_solver(self.solver)
+        if self.gradients not in GRADIENTS:
+            raise SettingsError(f"unknown gradients {self.gradients!r}; choose analytic or fd")
+        if self.gradients == "fd" and self.solver != "slsqp":
+            raise SettingsError("--gradients fd is for --solver slsqp")
+        low, high = RATE_RANGE
+        if not (self.rate == 0 or low <= self.rate <= high):  # NaN fails both
+            raise SettingsError(
+                f"--rate must be positive, {low:g} to {high:g} Hz (or 0 to keep the motion's rate), "
+                f"got {self.rate:g}"
+            )
+        if self.scenario is not None and self.scenario not in SCENARIOS:
+            raise SettingsError(f"unknown scenario {self.scenario!r}; choose one of: {', '.join(SCENARIOS)}")
+        if self.criteria is not None:
+            check_criteria(self.criteria, "--criteria")
+        _check_base_pose(self.placement)
+        robot_toml(str(self.robot))
+        if self.motion is not None:
+            motion_format(self.motion)
+        for what, path in (("--metric", self.metric), ("--corpus", self.corpus)):
+            if path is not None and not Path(path).exists():
+                raise SettingsError(f"{path} ({what}): no such file or folder")
+        stack = self.task_stack()
+        if stack.criteria and not solver.takes_criteria:
+            takers = ", ".join(n for n, s in SPECS.items() if s.takes_criteria)
+            raise SettingsError(
+                f"{self.solver} maps joints and cannot add criteria; choose --solver {takers}"
+            )
+        if self.metric is not None:
+            from hlik.criteria.unified import load_metric  # NumPy: after the quick checks
+
+            load_metric(self.metric)  # read again by run(): a bad file fails before the solve
+        return stack
+
+
+def _check_base_pose(spec: str | None) -> None:
+    """``X,Y,YAW[,Z]`` must be finite numbers (a NaN base pose scores NaN without a word)."""
+    if spec is None or "," not in spec:
+        return
+    try:
+        values = [float(v) for v in spec.split(",")]
+    except ValueError:
+        return  # placement_from_spec says what it expects
+    if len(values) in (3, 4) and not all(math.isfinite(v) for v in values):
+        raise HlikError(f"--placement {spec}: X, Y, YAW (and Z) must be finite numbers (m, m, deg, m)")

@@ -1,0 +1,94 @@
+"""Usage and input mistakes are answered before the heavy libraries load (issue 32: a typo cost
+about 4 s of imports before its one-line error), and formats hlik does not read are named."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import pytest
+from conftest import data_file
+
+from hlik.criteria import registry
+from hlik.human.formats import READS, motion_format
+from hlik.util.errors import MotionFormatError
+
+HEAVY = ("numpy", "mujoco", "scipy", "rerun", "mink", "nlopt")
+# Runs ``hlik ARGS`` in a fresh interpreter; prints the heavy modules it imported, then its exit code.
+PROBE = f"""
+import runpy, sys
+code = 0
+try:
+    runpy.run_module("hlik", run_name="__main__")
+except SystemExit as e:
+    code = e.code
+print(",".join(m for m in {HEAVY!r} if m in sys.modules) + "|" + str(code), file=sys.__stdout__)
+"""
+
+MISTAKES = [
+    (["run", "--robot", "armar7"], "unknown robot 'armar7'"),
+    (["run", "no_such_take.xml"], "no_such_take.xml: no such file"),
+    (["run", "--solver", "qp", "--criteria", "SYNN"], "unknown criteria SYNN"),
+    (["run", "--rate", "-1"], "--rate must be positive"),
+    (["run", "--solver", "qpp"], "unknown solver 'qpp'"),
+    (["run", "--layout", "sideways"], "unknown layout 'sideways'"),
+    (["run", "--gradients", "fd"], "--gradients fd is for --solver slsqp"),
+    (["run", "--scenario", "poses"], "unknown scenario 'poses'"),
+    (["run", "--metric", "no_such_metric.toml"], "no_such_metric.toml (--metric): no such file"),
+    (["evaluate", "no_such_run.npz"], "no_such_run.npz: no such file"),
+    (["export", "no_such_run.npz", "--format", "csv"], "no_such_run.npz: no such file"),
+    (["replay", "no_such_run.npz"], "no_such_run.npz: no such file"),
+    (["study", "--robots", "armar7"], "unknown robot 'armar7'"),
+]
+
+
+@pytest.mark.parametrize(("args", "message"), MISTAKES, ids=[" ".join(a) for a, _ in MISTAKES])
+def test_a_mistake_is_answered_before_any_heavy_import(tmp_path, args, message):
+    done = subprocess.run(
+        [sys.executable, "-c", PROBE, *args], cwd=tmp_path, capture_output=True, text=True, timeout=60
+    )
+    heavy, _, code = done.stdout.strip().splitlines()[-1].partition("|")
+    err = done.stderr.strip()
+    assert code == "2", (done.stdout, err)
+    assert len(err.splitlines()) == 1 and err.startswith("error: ") and message in err, err
+    assert heavy == "", f"imported {heavy} before the error"
+    assert not any(tmp_path.iterdir()), "nothing is written"
+
+
+@pytest.mark.parametrize(
+    ("relative", "kind"),
+    [
+        ("cmu/01_01.amc", "ASF/AMC"),
+        ("cmu/01.asf", "ASF/AMC"),
+        ("hdm05/HDM_dg_06-03_03_120.amc", "ASF/AMC"),
+        ("hdm05/HDM_dg_06-03_03_120.c3d", "C3D"),
+    ],
+)
+def test_formats_hlik_does_not_read_are_named(relative, kind):
+    path = data_file(relative)
+    with pytest.raises(MotionFormatError) as err:
+        motion_format(path)
+    message = str(err.value)
+    assert message.startswith(f"{path}: ") and kind in message and READS in message, message
+    assert "XML" not in message
+
+
+def test_formats_are_recognised_by_content_without_their_extension(tmp_path):
+    bvh, mmm, amc, text = (tmp_path / n for n in ("take.motion", "take.mmm", "take.dat", "notes.md"))
+    bvh.write_text("HIERARCHY\nROOT Hips\n")
+    mmm.write_text('\ufeff  <?xml version="1.0"?>\n<MMM version="2.0">')
+    amc.write_text(":FULLY-SPECIFIED\n:DEGREES\n1\nroot 0 0 0 0 0 0\n")
+    text.write_text("# not a motion\n")
+    assert motion_format(bvh) == "bvh" and motion_format(mmm) == "mmm"
+    with pytest.raises(MotionFormatError, match="ASF/AMC"):
+        motion_format(amc)
+    with pytest.raises(MotionFormatError, match="not a motion format hlik recognises"):
+        motion_format(text)
+
+
+def test_the_registry_names_each_built_in_criterion_by_its_class():
+    """The registry lists the built-ins without importing them; each name must resolve to the
+    class of that name, functional where listed so."""
+    for name in registry.human_likeness() + registry.functional():
+        cls = registry.criterion_class(name)
+        assert cls.name == name and cls.functional == (name in registry.functional())
