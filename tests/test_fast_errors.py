@@ -7,8 +7,8 @@ import subprocess
 import sys
 
 import pytest
-from conftest import data_file
 
+from conftest import data_file
 from hlik.criteria import registry
 from hlik.human.formats import READS, motion_format
 from hlik.util.errors import MotionFormatError

@@ -4,6 +4,7 @@ end (Parquet schema, resume, failures) and the derived metric's round trip throu
 from __future__ import annotations
 
 import json
+from types import MappingProxyType
 
 import numpy as np
 import pyarrow as pa
@@ -15,8 +16,9 @@ from hlik.cli import app
 from hlik.criteria import registry
 from hlik.criteria.unified import Metric, load_metric
 from hlik.robot.model import SIDES, load_robot
-from hlik.study.analysis import hierarchy_weights, spearman, ward
+from hlik.study.analysis import Correlation, Ranking, hierarchy_weights, spearman, ward
 from hlik.study.approaches import Approach, load_approaches
+from hlik.study.report import findings
 from hlik.study.runner import plan, run_cells, run_study
 from hlik.util.errors import HlikError
 from hlik.util.paths import demo_motion_path
@@ -156,6 +158,13 @@ def test_a_tiny_study_writes_cells_metric_and_report(tiny):
     assert {p.name for p in out.glob("*.png")} == {"correlation.png", "dendrogram.png", "scores_pose.png"}
     html = (out / "report.html").read_text()
     assert "Table III" in html and "qp+SYN+HJA_r" in html and html.count("data:image/png;base64") == 3
+    # one robot, one 1 s take: no deviation across robots or takes, and no finding judged
+    assert "across robots none with 1 robot" in html and "across motions none with 1 take" in html
+    assert (
+        "<td>yes</td>" not in html
+        and "<td>no</td>" not in html
+        and "not judged: 1 take, 202 frames" in html  # two approaches correlated
+    )
     rows = result.rankings[0].rows
     assert [r["m_hl_f"] for r in rows] == sorted((r["m_hl_f"] for r in rows), reverse=True)
     for r in rows:  # Eq. 2 with the derived weights, m_f of the pose scenario
@@ -251,7 +260,9 @@ def test_bad_metric_files_name_the_file_and_the_problem(tmp_path, text, problem)
     with pytest.raises(HlikError, match="m.toml") as err:
         load_metric(path)
     assert problem in str(err.value)
-    # on the command line the message prints as written ("[weights]" is not rich markup)
+    # on the command line the message prints as written ("[weights]" is not rich markup); the
+    # metric is read before the trajectory (which is only checked to be there)
+    path.with_suffix(".npz").write_bytes(b"not read")
     result = CliRunner().invoke(app, ["evaluate", str(path.with_suffix(".npz")), "--metric", str(path)])
     assert result.exit_code == 2 and problem in result.stderr and "[weights]" in result.stderr
 
@@ -280,3 +291,29 @@ def test_cells_without_the_posture_columns_still_read_with_new_ones(tiny, tmp_pa
     both = read_dataset([new, old])
     assert both.num_rows == 2 * table.num_rows
     assert both.column("lean_robot").null_count == table.num_rows
+
+
+def test_findings_are_judged_only_on_enough_data():
+    names = registry.human_likeness()
+    rng = np.random.default_rng(0)
+    mean = np.corrcoef(rng.normal(size=(len(names), 50)))
+    rows = (
+        {"approach": "slsqp+SYN", "m_hl_f": 0.7, "cells": 24},
+        {"approach": "jv", "m_hl_f": 0.6, "cells": 2},
+    )
+    ranking = Ranking("pose", rows)
+    for takes, frames, judged in ((2, 5000, False), (8, 999, False), (8, 1000, True)):
+        corr = Correlation(names, MappingProxyType({}), mean, 0.1, 0.1, takes=takes, frames=frames)
+        verdicts = [v for f, v, _ in findings(corr, [ranking]) if "OPT" not in f]
+        assert all((v in ("yes", "no")) == judged for v in verdicts), (takes, frames, verdicts)
+    opt = [v for f, v, _ in findings(corr, [ranking]) if "OPT" in f]
+    assert opt == ["not judged: 2 cells per approach; needs 3"]
+    enough = Ranking("pose", tuple({**r, "cells": 3} for r in rows))
+    assert [v for f, v, _ in findings(corr, [enough]) if "OPT" in f] == ["yes"]
+    one = Correlation(
+        names, MappingProxyType({"armar6": mean}), mean, float("nan"), 0.05, takes=4, frames=2000
+    )
+    assert (
+        "across robots none with 1 robot" in one.deviation_text()
+        and "0.050 (paper 0.1)" in one.deviation_text()
+    )

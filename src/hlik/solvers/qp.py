@@ -20,6 +20,7 @@ import numpy as np
 
 from hlik.criteria import registry, unified
 from hlik.criteria.base import Term
+from hlik.criteria.elbows import ElbowsAhead
 from hlik.criteria.functional import target_terms
 from hlik.criteria.joints import TrunkUpright
 from hlik.criteria.learned import Learned
@@ -58,6 +59,8 @@ class QPSettings(SolverSettings):
         velocity_cost, acceleration_cost, jerk_cost: Weights of the smoothness terms.
         trunk_cost: Weight per rad of the extra (trunk) joints toward home
             (:class:`~hlik.criteria.joints.TrunkUpright`; 0: none; robots without them: no term).
+        elbow_cost: Weight per metre of an elbow behind the shoulders' frontal plane by more than
+            ``elbow_allowance`` (m) (:class:`~hlik.criteria.elbows.ElbowsAhead`; 0: none).
         damping: Levenberg-Marquardt damping of every step.
         max_iter: QP steps per frame at most (the first frame gets ten times more).
         tol: A frame has converged when no joint moves more than this in a step, rad.
@@ -88,6 +91,8 @@ class QPSettings(SolverSettings):
     jerk_cost: float = 0.005
     # ARMAR-III's hip upright (issue 28; tasks/ee_pose.toml and README "Trunk upright" say why 2)
     trunk_cost: float = 2.0
+    elbow_cost: float = 0.0
+    elbow_allowance: float = 0.02
     position_band: float = 0.0
     orientation_band: float = 0.0
     damping: float = 1e-6
@@ -100,7 +105,7 @@ class QPSettings(SolverSettings):
     def __post_init__(self):
         check_settings(
             self,
-            at_least_zero=("position_band", "orientation_band", "damping"),
+            at_least_zero=("position_band", "orientation_band", "damping", "elbow_allowance"),
             positive=("tol", "max_step"),
             fractions=("collision_gain",),
             counts=("max_iter",),
@@ -137,6 +142,8 @@ def build_terms(
     terms += smoothness_terms(robot, settings.velocity_cost, settings.acceleration_cost, settings.jerk_cost)
     if settings.trunk_cost > 0 and robot.extra_joints:
         terms.append((TrunkUpright(robot), settings.trunk_cost))
+    if settings.elbow_cost > 0:
+        terms.append((ElbowsAhead(settings.elbow_allowance), settings.elbow_cost))
     for name in settings.criteria:
         term = registry.criterion(name, robot, learned)
         # the objective weighs ||e_i||^2 by gamma_i * criterion_cost / k, as the paper weighs h_i

@@ -3,6 +3,7 @@ weights and x0 it gives (Sec. IV-C, formulas.md §10), and rankings by m_hl,f (S
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from types import MappingProxyType
 
@@ -54,6 +55,9 @@ class Correlation:
         mean: (k, k) the per-robot matrices averaged (the paper's C).
         mad_robots, mad_motions: Mean absolute deviation of the off-diagonal coefficients across
             robots, and across motions (per-take matrices over all robots); paper: 0.126 and 0.1.
+            NaN with fewer than two robots (takes): there is nothing to deviate from.
+        takes: Number of takes the frames come from.
+        frames: Number of frames (rows) the matrices are computed over.
     """
 
     names: tuple[str, ...]
@@ -61,6 +65,22 @@ class Correlation:
     mean: np.ndarray
     mad_robots: float
     mad_motions: float
+    takes: int = 0
+    frames: int = 0
+
+    def deviation_text(self) -> str:
+        """The deviations across robots and motions against the paper's, or why there is none."""
+        robots = (
+            f"{self.mad_robots:.3f} (paper 0.126)"
+            if math.isfinite(self.mad_robots)
+            else f"none with {len(self.per_robot)} robot (paper 0.126)"
+        )
+        motions = (
+            f"{self.mad_motions:.3f} (paper 0.1)"
+            if math.isfinite(self.mad_motions)
+            else f"none with {self.takes} take (paper 0.1)"
+        )
+        return f"mean absolute deviation of the coefficients across robots {robots}, across motions {motions}"
 
 
 def correlate(frames: pa.Table, names: tuple[str, ...] | None = None) -> Correlation:
@@ -70,7 +90,13 @@ def correlate(frames: pa.Table, names: tuple[str, ...] | None = None) -> Correla
     per_take = [spearman(_rows(frames, "take", t), names) for t in _values(frames, "take")]
     mean = np.mean(list(per_robot.values()), axis=0) if per_robot else np.eye(len(names))
     return Correlation(
-        names, MappingProxyType(per_robot), mean, _mad(list(per_robot.values())), _mad(per_take)
+        names,
+        MappingProxyType(per_robot),
+        mean,
+        _mad(list(per_robot.values())),
+        _mad(per_take),
+        takes=len(per_take),
+        frames=frames.num_rows,
     )
 
 
@@ -83,9 +109,10 @@ def _rows(table: pa.Table, column: str, value: str) -> pa.Table:
 
 
 def _mad(matrices: list[np.ndarray]) -> float:
-    """Mean over the coefficients above the diagonal of their mean absolute deviation across matrices."""
+    """Mean over the coefficients above the diagonal of their mean absolute deviation across
+    matrices; NaN for fewer than two."""
     if len(matrices) < 2:
-        return 0.0
+        return float("nan")
     stack = np.array(matrices)
     upper = np.triu_indices(stack.shape[1], 1)
     values = stack[:, upper[0], upper[1]]

@@ -11,6 +11,7 @@ import numpy as np
 
 from hlik.criteria import registry, unified
 from hlik.criteria.base import Sample, Term
+from hlik.criteria.elbows import ElbowsAhead
 from hlik.criteria.functional import fORI, fORI_off, fPOS, fPOS_off
 from hlik.criteria.joints import TrunkUpright
 from hlik.criteria.learned import Learned
@@ -78,6 +79,7 @@ def build_losses(
     ]
     if robot.extra_joints:
         weighted.append((TrunkUpright(robot), settings.trunk_cost))
+    weighted.append((ElbowsAhead(settings.elbow_allowance), settings.elbow_cost))
     weight = settings.criterion_cost / max(len(settings.criteria), 1)
     weighted += [(registry.criterion(name, robot, learned), weight) for name in settings.criteria]
     if first:

@@ -32,6 +32,8 @@ class SLSQPSettings(SolverSettings):
         criterion_cost: Weight of the criteria together; each gets ``criterion_cost / len(criteria)``.
         trunk_cost: Weight of the extra (trunk) joints toward home
             (:class:`~hlik.criteria.joints.TrunkUpright`, h in rad^2; 0: none).
+        elbow_cost: Weight of the elbows behind the shoulders' frontal plane by more than
+            ``elbow_allowance`` (m) (:class:`~hlik.criteria.elbows.ElbowsAhead`, h in m^2; 0: none).
         gamma: Criterion name -> scaling gamma_i inside the groove (Table II; 1 where absent).
         position_gamma: gamma_p of the TCP and relative position losses (Sec. IV-A: 10).
         gradients: ``analytic`` (from the term Jacobians) or ``fd`` (forward differences, the paper's).
@@ -60,6 +62,8 @@ class SLSQPSettings(SolverSettings):
     jerk_cost: float = 1.0
     criterion_cost: float = 10.0
     trunk_cost: float = 0.0
+    elbow_cost: float = 0.0
+    elbow_allowance: float = 0.02
     position_gamma: float = 10.0
     gradients: str = "analytic"
     ftol_rel: float = 1e-6
@@ -74,7 +78,7 @@ class SLSQPSettings(SolverSettings):
     def __post_init__(self):
         check_settings(
             self,
-            at_least_zero=("position_gamma", "position_band", "orientation_band"),
+            at_least_zero=("position_gamma", "position_band", "orientation_band", "elbow_allowance"),
             positive=("fd_step",),
             fractions=("ftol_rel",),
             counts=("max_eval", "first_eval", "collision_pairs"),
