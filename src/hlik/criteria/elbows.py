@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from hlik.criteria.base import Term
+from hlik.criteria.base import Term, block_norm_cost, block_norm_gradient
 from hlik.robot.state import RobotState
 
 UP = np.array([0.0, 0.0, 1.0])
@@ -22,14 +22,16 @@ class ElbowsAhead(Term):
     is not: e_p = max(0, -allowance - (E_p - S)·f), e (F, 2). A one-sided (hinge) residual: it only
     acts on an elbow going behind the back and leaves every other posture to the criteria.
 
-    Its Jacobian is exact (the shoulders' motion and the turn of f included, for a robot whose
-    trunk joints move the shoulders), from the shoulder and elbow site Jacobians.
+    Its cost h is the mean over the arms of e_p, in m (like fPOS, so that SLSQP's groove treats it
+    as a length). Its Jacobian is exact (the shoulders' motion and the turn of f included, for a
+    robot whose trunk joints move the shoulders), from the shoulder and elbow site Jacobians.
     """
 
     name = "elbows"
     needs_sample = False
     sites = (0, 1)
     value_sites = ()
+    parts, part_form = 2, "norm"
 
     def __init__(self, allowance: float = 0.02):
         self.allowance = float(allowance)
@@ -42,6 +44,12 @@ class ElbowsAhead(Term):
         mid = 0.5 * (left + right)
         ahead = np.einsum("fai,fi->fa", state.elbow - mid[:, None], f)
         return ahead, f, u, mid
+
+    def cost(self, e: np.ndarray) -> np.ndarray:
+        return block_norm_cost(e, 2)
+
+    def cost_gradient(self, e: np.ndarray) -> np.ndarray:
+        return block_norm_gradient(e, 2)
 
     def residual(self, state, sample):
         ahead, *_ = self._plane(state)

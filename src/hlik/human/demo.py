@@ -2,16 +2,18 @@
 
 Key poses are written in MMM joint space (rad) and joined with minimum-jerk timing
 (Flash & Hogan: s(τ) = 10τ³ - 15τ⁴ + 6τ⁵), so the motion is smooth and human-like without any
-recorded data. ``python -m hlik.demo`` rewrites ``hlik/data/demo_pour_wipe.xml``.
+recorded data. ``python -m hlik.human.demo`` rewrites ``hlik/data/demo_pour_wipe.xml`` and its
+arm skeleton as BVH, ``hlik/data/demo_pour_wipe.bvh`` (30 Hz).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from hlik.human.mmm_format import write_mmm
+from hlik.human.bvh import write_bvh
+from hlik.human.mmm_format import read_mmm, write_mmm
 from hlik.human.motion import HumanMotion
-from hlik.util.paths import demo_motion_path
+from hlik.util.paths import demo_bvh_path, demo_motion_path
 
 HEIGHT = 1.75  # m
 RATE = 25.0  # Hz; commands resample to their own rate
@@ -96,3 +98,4 @@ if __name__ == "__main__":
     path.parent.mkdir(parents=True, exist_ok=True)
     write_mmm(demo_motion(), path)
     print(f"wrote {path}")
+    print(f"wrote {write_bvh(read_mmm(path), demo_bvh_path())}")  # from the file, as a user reads it

@@ -38,6 +38,12 @@ def demo_motion_path() -> Path:
     return _PACKAGE / "data" / "demo_pour_wipe.xml"
 
 
+def demo_bvh_path() -> Path:
+    """The bundled demo's arm skeleton as BVH (:func:`hlik.human.bvh.write_bvh`), to try the BVH
+    reader (needs ``pip install -e ".[bvh]"``)."""
+    return _PACKAGE / "data" / "demo_pour_wipe.bvh"
+
+
 def cache_dir() -> Path:
     """Where fitted and sampled pieces are cached: ``$HLIK_CACHE``, else ``$XDG_CACHE_HOME/hlik``,
     else ``~/.cache/hlik``; created if missing.

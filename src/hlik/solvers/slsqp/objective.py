@@ -23,10 +23,11 @@ from hlik.solvers.gradients import gradient_of, metric, part_gradients_of, part_
 from hlik.solvers.slsqp.groove import groove, groove_curvature, groove_secant
 from hlik.solvers.slsqp.settings import SLSQPSettings
 
-# Sec. IV-A's gamma_p = 10 for the TCP position. The relative position (m, like fPOS) gets it too:
+# Sec. IV-A's gamma_p = 10 for the TCP position. The relative position and the elbows behind the
+# back (m, like fPOS) get it too:
 # with 1 the groove's well (c = 0.1) is 10 cm wide and SLSQP leaves fPOS^off at 10-50 cm on the
 # demo; with 10 it is a few mm (Sec. V-B's x0: 3 cm).
-POSITION_TERMS = ("fPOS", "fPOS_off")
+POSITION_TERMS = ("fPOS", "fPOS_off", "elbows")  # lengths, m
 
 # objective_scale's factor over the mean Gauss-Newton diagonal: an initial Hessian that is too large
 # only shortens the first steps, one too small overshoots; 10 needed the fewest evaluations (1, 10,
