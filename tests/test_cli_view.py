@@ -448,15 +448,30 @@ def test_corpus_from_the_environment_or_hlik_toml(corpus, tmp_path, monkeypatch)
         corpus_setting()
 
 
+def test_piped_output_never_breaks_a_path(short_take, tmp_path, monkeypatch):
+    """At 80 columns (piped), the recording, trajectory and corpus lines and the commands to copy
+    each hold their whole path on one line."""
+    monkeypatch.chdir(tmp_path)
+    out = tmp_path / ("a_folder_with_a_long_name_" * 3) / "and_a_recording_whose_name_is_long_too.rrd"
+    out.parent.mkdir()
+    args = ("run", short_take, "--solver", "jm", "--rate", "0", "--placement", "mapped", "--out", out)
+    result = invoke(*args, env={"COLUMNS": "80"})
+    assert result.exit_code == 0, result.output
+    lines = result.stdout.splitlines()
+    for path in (out, out.with_suffix(".npz")):
+        assert any(str(path) in line for line in lines), (path, result.stdout)
+    assert any(line.startswith("open with: rerun ") and str(out) in line for line in lines)
+
+
 def test_run_says_which_corpus_the_criteria_came_from(corpus, short_take, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     args = ("run", short_take, "--solver", "jm", "--rate", "0", "--placement", "mapped")
     result = invoke(*args, env={"HLIK_CORPUS": str(corpus), "COLUMNS": "200"})
     assert result.exit_code == 0, result.output
-    assert f"criteria learned from  {corpus} (1 file, from HLIK_CORPUS)" in result.stdout
+    assert f"criteria learned from: {corpus} (1 file, from HLIK_CORPUS)" in result.stdout
     demo = invoke(*args, env={"HLIK_CORPUS": "", "COLUMNS": "200"})
     assert demo.exit_code == 0, demo.output  # another corpus, another default name: no --force needed
-    assert "criteria learned from  the bundled demo (demo_pour_wipe.xml)" in demo.stdout
+    assert "criteria learned from: the bundled demo (demo_pour_wipe.xml)" in demo.stdout
     missing = invoke(*args, env={"HLIK_CORPUS": str(tmp_path / "none")})
     one_line_error(missing, "none", "HLIK_CORPUS", "corpus")
 

@@ -163,9 +163,15 @@ def run(
 def _report(result: RunResult, rrd: Path, npz: Path, corpus_source: str) -> None:
     """The summary, the scores, the warnings and the commands to go on with."""
     traj, ev, spec = result.trajectory, result.evaluation, result.spec
-    summary = run_summary(spec.motion_path.stem, traj, result.motion, result.solve_seconds, rrd, npz, ev)
-    summary.add_row("criteria learned from", _corpus_label(spec.corpus, result.learned.corpus, corpus_source))
-    console.print(summary)
+    # Lines naming a file or a command are printed whole, each on its own line: a table cell would
+    # break a path at the console's width (80 columns when piped).
+    console.print(f"{spec.motion_path.stem} -> {result.robot.name} ({traj.solver})", soft_wrap=True)
+    console.print(run_summary(traj, result.motion, result.solve_seconds, ev))
+    size = lambda path: f"{path.stat().st_size / 1e6:.1f} MB"  # noqa: E731
+    console.print(f"recording: {rrd} ({size(rrd)})", soft_wrap=True)
+    console.print(f"trajectory: {npz} ({size(npz)})", soft_wrap=True)
+    label = _corpus_label(spec.corpus, result.learned.corpus, corpus_source)
+    console.print(f"criteria learned from: {label}", soft_wrap=True)
     if result.tried:
         scores = ", ".join(f"{c.name} {c.m_hl_f:.3f}" for c in result.tried)
         console.print(f"placement optimize (m_hl,f of a short qp run): {scores}")

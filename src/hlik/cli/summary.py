@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 from rich.table import Table
 
 
@@ -61,7 +59,8 @@ def posture_line(p) -> str:
     )
 
 
-def run_summary(title: str, traj, motion, solve_time: float, rrd: Path, npz: Path, ev) -> Table:
+def run_summary(traj, motion, solve_time: float, ev) -> Table:
+    """The run's summary table, without the file names (printed after it, never wrapped)."""
     import numpy as np
 
     from hlik.criteria.functional import relative_errors
@@ -69,7 +68,7 @@ def run_summary(title: str, traj, motion, solve_time: float, rrd: Path, npz: Pat
     from hlik.solvers import solver_spec
 
     fpos, fori = ev.fpos, ev.fori
-    table = Table(show_header=False, box=None, title=f"{title} -> {Path(traj.robot).stem} ({traj.solver})")
+    table = Table(show_header=False, box=None)
     table.add_column(no_wrap=True)
     table.add_column(overflow="fold")
     table.add_row("frames", f"{traj.n_frames} over {motion.duration:.2f} s at {motion.rate:.1f} Hz")
@@ -114,7 +113,4 @@ def run_summary(title: str, traj, motion, solve_time: float, rrd: Path, npz: Pat
         "hands relative",
         f"fPOS_off mean {100 * off_pos.mean():.1f} cm, fORI_off mean {np.degrees(off_rot.mean()):.1f}°",
     )
-    size = lambda path: f"{path.stat().st_size / 1e6:.1f} MB"  # noqa: E731
-    table.add_row("recording", f"{rrd} ({size(rrd)})")
-    table.add_row("trajectory", f"{npz} ({size(npz)})")
     return table
