@@ -65,9 +65,13 @@ def cut_take(takes) -> Path:
 
 @pytest.fixture(autouse=True, scope="session")
 def _private_cache(tmp_path_factory):
-    """Learned criteria are cached in a per-session folder, never in the user's cache."""
+    """Learned criteria are cached in a per-session folder, never in the user's cache; the user's
+    settings are never read or written; commands learn from the bundled demo unless a test says
+    otherwise (the shared KIT takes would be found beside the checkout)."""
     with pytest.MonkeyPatch.context() as mp:
         mp.setenv("HLIK_CACHE", str(tmp_path_factory.mktemp("hlik-cache")))
+        mp.setenv("XDG_CONFIG_HOME", str(tmp_path_factory.mktemp("config")))
+        mp.setenv("HLIK_CORPUS", "demo")
         yield
 
 

@@ -430,6 +430,7 @@ def corpus(short_take, tmp_path) -> Path:
 def test_corpus_from_the_environment_or_hlik_toml(corpus, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     monkeypatch.delenv("HLIK_CORPUS", raising=False)
+    monkeypatch.setenv("HLIK_DATA", str(tmp_path / "no data"))
     assert corpus_setting() == (None, "")
     (tmp_path / "hlik.toml").write_text('corpus = "my corpus"\n')
     found, source = corpus_setting()
@@ -446,6 +447,38 @@ def test_corpus_from_the_environment_or_hlik_toml(corpus, tmp_path, monkeypatch)
     (tmp_path / "hlik.toml").write_text("corpus = \n")
     with pytest.raises(SettingsError, match="hlik.toml: cannot read"):
         corpus_setting()
+
+
+def test_the_default_corpus_is_remembered_else_the_shared_takes_else_the_demo(
+    corpus, short_take, tmp_path, monkeypatch
+):
+    """Issue 32: ``hlik learn --corpus DIR`` changes later runs (remembered in the user's config);
+    without any setting the shared KIT takes are the corpus where they are; ``--corpus demo``
+    names the demo."""
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.delenv("HLIK_CORPUS", raising=False)
+    monkeypatch.setenv("XDG_CONFIG_HOME", str(tmp_path / "config"))
+    kit = tmp_path / "data" / "kit_bimanual"
+    kit.mkdir(parents=True)
+    shutil.copy(short_take, kit / "take.xml")
+    monkeypatch.setenv("HLIK_DATA", str(kit.parent))
+    assert corpus_setting() == (kit, "the shared KIT takes")
+    learned = invoke("learn", "dual_panda", "--corpus", corpus)
+    assert learned.exit_code == 0, learned.output
+    config = tmp_path / "config" / "hlik" / "config.toml"
+    assert f"remembered in {config}" in learned.stdout
+    found, source = corpus_setting()
+    assert found == corpus.resolve() and source == f"corpus in {config}"
+    (tmp_path / "hlik.toml").write_text('corpus = "my corpus"\n')  # the working folder's first
+    assert corpus_setting()[1] == "corpus in hlik.toml"
+    run = invoke(
+        "run", short_take, "--robot", "dual_panda", "--corpus", "demo", "--rate", "0", env={"COLUMNS": "200"}
+    )
+    assert run.exit_code == 0, run.output
+    assert "criteria learned from: the bundled demo" in run.stdout and "--corpus demo" in run.stdout
+    assert (
+        "_corpus-demo.rrd" in run.stdout and "warning: criteria learned from the bundled demo" in run.stderr
+    )
 
 
 def test_piped_output_never_breaks_a_path(short_take, tmp_path, monkeypatch):
@@ -469,9 +502,11 @@ def test_run_says_which_corpus_the_criteria_came_from(corpus, short_take, tmp_pa
     result = invoke(*args, env={"HLIK_CORPUS": str(corpus), "COLUMNS": "200"})
     assert result.exit_code == 0, result.output
     assert f"criteria learned from: {corpus} (1 file, from HLIK_CORPUS)" in result.stdout
-    demo = invoke(*args, env={"HLIK_CORPUS": "", "COLUMNS": "200"})
+    demo = invoke(*args, env={"HLIK_CORPUS": "demo", "COLUMNS": "200"})
     assert demo.exit_code == 0, demo.output  # another corpus, another default name: no --force needed
     assert "criteria learned from: the bundled demo (demo_pour_wipe.xml)" in demo.stdout
+    assert "warning: criteria learned from the bundled demo" in demo.stderr
+    assert "warning: criteria learned" not in result.stderr
     missing = invoke(*args, env={"HLIK_CORPUS": str(tmp_path / "none")})
     one_line_error(missing, "none", "HLIK_CORPUS", "corpus")
 

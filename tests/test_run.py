@@ -202,3 +202,21 @@ def test_summary_reports_where_the_hands_lag():
     fpos[30:35] = 3 * LAG
     assert lag_spans(fpos, times) == "0.10-0.19 s (left), 0.30-0.34 s (both); 15 frames"
     assert lag_spans(np.zeros((50, 2)), times) == ""
+
+
+def test_the_readmes_jm_errors_on_the_demo_are_current():
+    """README "What you see": JM's mean hand errors on the demo per robot, as the sentence states
+    them, within the last digit printed."""
+    from pathlib import Path
+
+    import hlik
+
+    text = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    sentence = " ".join(text[text.index("JM maps joint angles and ignores") :].split("That")[0].split())
+    titles = {"ARMAR-III": "armar3", "2-Panda": "dual_panda", "ARMAR-6": "armar6"}
+    stated = re.findall(r"(ARMAR-III|2-Panda|ARMAR-6) ([\d.]+) cm / ([\d.]+)°", sentence)
+    assert len(stated) == 3, sentence
+    for title, cm, deg in stated:
+        ev = hlik.run(hlik.RunSpec(robot=titles[title], solver="jm")).evaluation
+        assert 100 * ev.fpos.mean() == pytest.approx(float(cm), abs=0.06), title
+        assert np.degrees(ev.fori.mean()) == pytest.approx(float(deg), abs=0.06), title

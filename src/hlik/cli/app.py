@@ -96,11 +96,31 @@ MotionArg = Annotated[
 CorpusOpt = Annotated[
     Path | None,
     typer.Option(
-        help="Folder of MMM motions to learn synergies and the swivel regressor from (default: "
-        '$HLIK_CORPUS, else corpus = "DIR" in ./hlik.toml, else the bundled demo).',
+        help="Folder of MMM motions to learn synergies and the swivel regressor from, or demo (the "
+        'bundled synthetic demo). Default: $HLIK_CORPUS, else corpus = "DIR" in ./hlik.toml, else the '
+        "one `hlik learn --corpus` remembered (~/.config/hlik/config.toml), else the shared KIT takes "
+        "(../shared/motion_data/kit_bimanual or $HLIK_DATA), else the demo (warned).",
         show_default=False,
     ),
 ]
+# The line said whenever criteria or scores come from the synthetic demo.
+DEMO_CORPUS_WARNING = (
+    "criteria learned from the bundled demo, a 12 s pour and wipe authored here, not recorded: "
+    "the synergies, swivel regressor and lambda_R of SYN, MIS, EEA, SYN_r, EEA_r and MAN_r are not a "
+    "person's; learn them from recorded takes once with `hlik learn --corpus DIR`"
+)
+
+
+def resolve_corpus(corpus: Path | None) -> tuple[Path | None, str]:
+    """The corpus folder of a command's ``--corpus`` (``demo``: None, the bundled demo), else the
+    configured one (:func:`hlik.util.paths.corpus_setting`), and where it came from."""
+    from hlik.util.paths import DEMO, corpus_setting
+
+    if corpus is not None:
+        return (None, "--corpus") if str(corpus) == DEMO else (corpus, "--corpus")
+    return corpus_setting()
+
+
 ScenarioOpt = Annotated[
     str, typer.Option(help="Functional score: pose (hand poses) or relative (relative pose of the hands).")
 ]

@@ -10,6 +10,7 @@ import typer
 from rich.table import Table
 
 from hlik.cli.app import (
+    DEMO_CORPUS_WARNING,
     FLAG,
     CorpusOpt,
     MetricOpt,
@@ -17,10 +18,10 @@ from hlik.cli.app import (
     check_trajectory_file,
     console,
     one_line,
+    resolve_corpus,
     trajectory_and_robot,
     warn,
 )
-from hlik.util.paths import corpus_setting
 
 
 def evaluate(
@@ -44,9 +45,10 @@ def evaluate(
         check_scenario(scenario)
         unified_metric = load_metric(metric) if metric is not None else None
         traj, r = trajectory_and_robot(trajectory)
-        learned = learn(r, corpus if corpus is not None else corpus_setting()[0])
+        folder, _ = resolve_corpus(corpus)
+        learned = learn(r, folder)
         ev = evaluate_trajectory(traj, r, learned, scenario=scenario, metric=unified_metric)
-    warn(learned.notes)
+    warn([*learned.notes, *([DEMO_CORPUS_WARNING] if folder is None else [])])
     if json_out:
         sys.stdout.write(json.dumps(ev.to_json(), indent=2) + "\n")
         return

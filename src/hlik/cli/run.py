@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING, Annotated
 import typer
 
 from hlik.util.errors import HlikError
-from hlik.util.paths import corpus_setting
+from hlik.util.paths import DEMO
 
 if TYPE_CHECKING:  # imported where used: `hlik --help` stays quick
     from hlik.pipeline import RunResult
@@ -19,6 +19,7 @@ if TYPE_CHECKING:  # imported where used: `hlik --help` stays quick
     from hlik.run_spec import RunSpec
 
 from hlik.cli.app import (
+    DEMO_CORPUS_WARNING,
     FLAG,
     CorpusOpt,
     MetricOpt,
@@ -26,6 +27,7 @@ from hlik.cli.app import (
     console,
     one_line,
     progress_bar,
+    resolve_corpus,
     warn,
 )
 from hlik.cli.outputs import check_outputs, file_stem, write_outputs
@@ -120,7 +122,7 @@ def run(
     from hlik.run_spec import RunSpec
 
     with one_line():
-        corpus, corpus_source = (corpus, "--corpus") if corpus is not None else corpus_setting()
+        corpus, corpus_source = resolve_corpus(corpus)
         chosen = None if criteria is None else tuple(c.strip() for c in criteria.split(",") if c.strip())
         spec = RunSpec(
             motion=motion,
@@ -143,7 +145,7 @@ def run(
         from hlik.robot.model import load_robot
 
         r = load_robot(robot)
-        stem = file_stem(spec.motion_path.stem, r.name, _tag(spec, r, layout))
+        stem = file_stem(spec.motion_path.stem, r.name, _tag(spec, r, layout, corpus_source))
         rrd = out or Path("recordings") / f"{stem}.rrd"
         npz = rrd.with_suffix(".npz")
         check_outputs(rrd, npz, _inputs(spec), create=out is None, force=force)
@@ -180,10 +182,10 @@ def _report(result: RunResult, rrd: Path, npz: Path, corpus_source: str) -> None
         f"m_hl,f = {ev.m_hl_f:.3f}, weights and x0: {ev.metric.source}",
         soft_wrap=True,
     )
-    warn(result.warnings)  # at the end, where they are seen
+    warn([*result.warnings, *([DEMO_CORPUS_WARNING] if spec.corpus is None else [])])  # at the end, seen
     # the same scores again: everything that changed them here is passed on
     details = ["hlik", "evaluate", str(npz), "--scenario", result.scenario]
-    details += ["--corpus", str(spec.corpus)] if spec.corpus is not None else []
+    details += ["--corpus", str(spec.corpus) if spec.corpus is not None else DEMO]
     details += ["--metric", str(spec.metric)] if spec.metric is not None else []
     # Commands to copy: each on its own line, never wrapped inside a path.
     console.print(f"details: {shlex.join(details)}", soft_wrap=True)
@@ -210,8 +212,9 @@ def _inputs(spec: RunSpec) -> list:
     return [spec.motion_path, spec.metric, spec.robot, spec.stack, tasks_dir() / f"{spec.stack}.toml"]
 
 
-def _tag(spec: RunSpec, robot: Robot, layout: str) -> str:
-    """:func:`_run_tag` of a run: the spec's choices that differ from the defaults."""
+def _tag(spec: RunSpec, robot: Robot, layout: str, corpus_source: str) -> str:
+    """:func:`_run_tag` of a run: the spec's choices that differ from the defaults (the corpus
+    where this command chose it: ``--corpus`` or ``$HLIK_CORPUS``; ``demo`` for the demo)."""
     from hlik.util.paths import tasks_dir
 
     stack = spec.task_stack()
@@ -228,7 +231,7 @@ def _tag(spec: RunSpec, robot: Robot, layout: str) -> str:
         metric=None if spec.metric is None else Path(spec.metric),
         rate=spec.rate,
         layout=layout,
-        corpus=spec.corpus,
+        corpus=(spec.corpus or Path(DEMO)) if corpus_source in ("--corpus", "HLIK_CORPUS") else None,
     )
 
 

@@ -134,7 +134,7 @@ def findings(corr: Correlation, rankings: Sequence[Ranking]) -> list[tuple[str, 
             f"ρ {rho('SYN_r', 'HJA_r'):.2f}; highest pair {top[0]}–{top[1]} {rho(*top):.2f} ({data})",
         )
     )
-    soa_eea = np.mean([rho(a, b) for a in ("SOA_x", "SOA_q") for b in ("EEA", "EEA_r")])
+    soa_eea = float(np.mean([rho(a, b) for a in ("SOA_x", "SOA_q") for b in ("EEA", "EEA_r")]))
     out.append(
         ("SOA and EEA correlate", verdict(soa_eea > 0.5, short, needs), f"mean ρ {soa_eea:.2f} ({data})")
     )

@@ -15,6 +15,7 @@ else:  # pragma: no cover
 
 _PACKAGE = Path(__file__).resolve().parents[1]  # hlik/, this module sits in hlik/util/
 CONFIG = "hlik.toml"  # in the working folder: settings that outlive one command (``corpus = "DIR"``)
+DEMO = "demo"  # HLIK_CORPUS / --corpus value naming the bundled demo
 
 
 def _bundled(name: str) -> Path:
@@ -72,33 +73,75 @@ def cache_dir() -> Path:
     return folder
 
 
+def user_config() -> Path:
+    """The user's settings file: ``$XDG_CONFIG_HOME/hlik/config.toml`` (``~/.config/hlik/...``),
+    where ``hlik learn --corpus DIR`` remembers the corpus."""
+    base = os.environ.get("XDG_CONFIG_HOME") or str(Path.home() / ".config")
+    return Path(base).expanduser() / "hlik" / "config.toml"
+
+
+def shared_corpus() -> Path | None:
+    """The KIT bimanual takes beside a checkout, if there: ``$HLIK_DATA/kit_bimanual``, else
+    ``../shared/motion_data/kit_bimanual`` from the working folder."""
+    data = os.environ.get("HLIK_DATA")
+    folder = (Path(data) if data else Path.cwd().parent / "shared" / "motion_data") / "kit_bimanual"
+    return folder if folder.is_dir() and any(folder.glob("*.xml")) else None
+
+
 def corpus_setting() -> tuple[Path | None, str]:
-    """The corpus folder configured for this working folder, and where the setting came from:
-    ``$HLIK_CORPUS``, else ``corpus = "DIR"`` in ``./hlik.toml`` (relative to that file), else
-    ``(None, "")`` (the bundled demo).
+    """The corpus folder the criteria are learned from when a command is given none, and where
+    the setting came from, first found of:
+
+    1. ``$HLIK_CORPUS`` (``demo``: the bundled demo);
+    2. ``corpus = "DIR"`` in ``./hlik.toml`` (relative to that file);
+    3. ``corpus = "DIR"`` in :func:`user_config` (written by ``hlik learn --corpus DIR``);
+    4. the shared KIT takes (:func:`shared_corpus`);
+    5. ``(None, "")``: the bundled demo, synthetic (the commands warn).
 
     Raises:
-        SettingsError: ``hlik.toml`` unreadable or not TOML, its ``corpus`` not a string, or the
+        SettingsError: a settings file unreadable or not TOML, its ``corpus`` not a string, or the
             configured folder does not exist (naming the setting).
     """
     if os.environ.get("HLIK_CORPUS"):
+        if os.environ["HLIK_CORPUS"] == DEMO:
+            return None, "HLIK_CORPUS"
         folder, source = Path(os.environ["HLIK_CORPUS"]).expanduser(), "HLIK_CORPUS"
     else:
-        config = Path.cwd() / CONFIG
-        if not config.is_file():
-            return None, ""
-        try:
-            table = tomllib.loads(config.read_text(encoding="utf-8"))
-        except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as e:
-            raise SettingsError(f"{CONFIG}: cannot read the settings ({' '.join(str(e).split())})") from None
-        if "corpus" not in table:
-            return None, ""
-        if not isinstance(table["corpus"], str) or not table["corpus"]:
-            raise SettingsError(f'{CONFIG}: corpus must be a folder name, e.g. corpus = "motions"')
-        folder, source = config.parent / Path(table["corpus"]).expanduser(), f"corpus in {CONFIG}"
+        found = _configured(Path.cwd() / CONFIG, CONFIG) or _configured(user_config(), str(user_config()))
+        if found is None:
+            shared = shared_corpus()
+            return (shared, "the shared KIT takes") if shared is not None else (None, "")
+        folder, source = found
     if not folder.exists():
         raise SettingsError(f"{folder} ({source}): no such corpus folder")
     return folder, source
+
+
+def _configured(config: Path, name: str) -> tuple[Path, str] | None:
+    """``corpus`` of a settings file and the setting's name, None where there is none."""
+    if not config.is_file():
+        return None
+    try:
+        table = tomllib.loads(config.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as e:
+        raise SettingsError(f"{name}: cannot read the settings ({' '.join(str(e).split())})") from None
+    if "corpus" not in table:
+        return None
+    if not isinstance(table["corpus"], str) or not table["corpus"]:
+        raise SettingsError(f'{name}: corpus must be a folder name, e.g. corpus = "motions"')
+    return config.parent / Path(table["corpus"]).expanduser(), f"corpus in {name}"
+
+
+def remember_corpus(folder: Path) -> Path:
+    """Write ``corpus = "FOLDER"`` (absolute) into :func:`user_config`, keeping its other lines;
+    returns the file."""
+    config = user_config()
+    lines = config.read_text(encoding="utf-8").splitlines() if config.is_file() else []
+    lines = [line for line in lines if not line.strip().startswith("corpus")]
+    value = str(folder.resolve()).replace("\\", "\\\\").replace('"', '\\"')
+    config.parent.mkdir(parents=True, exist_ok=True)
+    config.write_text("\n".join([f'corpus = "{value}"', *lines]) + "\n", encoding="utf-8")
+    return config
 
 
 def default_corpus() -> Path | None:
