@@ -35,6 +35,7 @@ MISTAKES = [
     (["run", "--gradients", "fd"], "--gradients fd is for --solver slsqp"),
     (["run", "--scenario", "poses"], "unknown scenario 'poses'"),
     (["run", "--metric", "no_such_metric.toml"], "no_such_metric.toml (--metric): no such file"),
+    (["run", "--span", "5:2"], "--span 5:2: START and END must be finite"),
     (["evaluate", "no_such_run.npz"], "no_such_run.npz: no such file"),
     (["export", "no_such_run.npz", "--format", "csv"], "no_such_run.npz: no such file"),
     (["replay", "no_such_run.npz"], "no_such_run.npz: no such file"),

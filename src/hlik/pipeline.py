@@ -79,7 +79,11 @@ def read_motion(spec: RunSpec, robot: Robot) -> HumanMotion:
     motion = load_motion(spec.motion_path, rate=spec.rate or None)
     if spec.span is not None:
         start, stop = spec.span
-        motion = motion.crop(min(start, motion.duration / 2), min(stop, motion.duration))
+        cut = min(start, motion.duration / 2), min(stop, motion.duration)
+        motion = motion.crop(*cut)
+        if cut != (start, stop):
+            note = f"{spec.motion_path}: span {start:g}-{stop:g} s cut to {cut[0]:g}-{cut[1]:g} s (a shorter take)"
+            motion = replace(motion, notes=(*motion.notes, note))
     return scale_subject(motion, robot, spec.scale)
 
 

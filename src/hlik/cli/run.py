@@ -100,6 +100,33 @@ ScaleOpt = Annotated[
 ]
 
 
+SpanOpt = Annotated[
+    str | None,
+    typer.Option(
+        help="Retarget only START:END seconds after the take's first frame (e.g. 2:5; END at most the "
+        "take's end). Default: the whole take.",
+        show_default=False,
+    ),
+]
+
+
+def _span(text: str | None) -> tuple[float, float] | None:
+    """``START:END`` -> (start, end) s.
+
+    Raises:
+        HlikError: not two numbers, or not 0 <= START < END.
+    """
+    if text is None:
+        return None
+    try:
+        start, end = (float(v) for v in text.split(":"))
+    except ValueError:
+        raise HlikError(f"--span {text}: expected START:END in seconds, e.g. 2:5") from None
+    if not (0.0 <= start < end < float("inf")):
+        raise HlikError(f"--span {text}: START and END must be finite with 0 <= START < END (s)")
+    return start, end
+
+
 def run(
     motion: MotionArg = None,
     robot: RobotOpt = "armar6",
@@ -116,6 +143,7 @@ def run(
     placement: PlacementOpt = None,
     scale: ScaleOpt = None,
     metric: MetricOpt = None,
+    span: SpanOpt = None,
 ) -> None:
     """Retarget a motion to a robot; write a Rerun recording and the trajectory (.npz) beside it."""
     from hlik.recording.layout import LAYOUTS
@@ -137,6 +165,7 @@ def run(
             corpus=corpus,
             metric=metric,
             gradients=gradients,
+            span=_span(span),
         )
         if layout not in LAYOUTS:
             raise HlikError(f"unknown layout {layout!r}; choose one of: {', '.join(LAYOUTS)}")
@@ -231,6 +260,7 @@ def _tag(spec: RunSpec, robot: Robot, layout: str, corpus_source: str) -> str:
         metric=None if spec.metric is None else Path(spec.metric),
         rate=spec.rate,
         layout=layout,
+        span=spec.span,
         corpus=(spec.corpus or Path(DEMO)) if corpus_source in ("--corpus", "HLIK_CORPUS") else None,
     )
 
@@ -249,6 +279,7 @@ def _run_tag(
     rate: float,
     layout: str,
     corpus: Path | None,
+    span: tuple[float, float] | None = None,
 ) -> str:
     """The part of the default output name after motion and robot: every choice that changes the
     result, defaults left out, e.g. ``slsqp_SYN_HJA_r_fd``, ``qp_my_stack_at-0.4_1.2_90``."""
@@ -260,6 +291,7 @@ def _run_tag(
     parts += [f"metric-{metric.stem}"] if metric is not None else []
     parts += [] if rate == 100.0 else ["native" if rate == 0 else f"{rate:g}Hz"]
     parts += [layout] if layout != "side" else []
+    parts += [f"{span[0]:g}-{span[1]:g}s"] if span is not None else []
     parts += [f"corpus-{Path(corpus).resolve().name or 'root'}"] if corpus is not None else []
     return "_".join(parts)
 
