@@ -82,7 +82,8 @@ def read_motion(spec: RunSpec, robot: Robot) -> HumanMotion:
         cut = min(start, motion.duration / 2), min(stop, motion.duration)
         motion = motion.crop(*cut)
         if cut != (start, stop):
-            note = f"{spec.motion_path}: span {start:g}-{stop:g} s cut to {cut[0]:g}-{cut[1]:g} s (a shorter take)"
+            kept = f"{cut[0]:g}-{cut[1]:g} s"
+            note = f"{spec.motion_path}: span {start:g}-{stop:g} s cut to {kept} (the take is shorter)"
             motion = replace(motion, notes=(*motion.notes, note))
     return scale_subject(motion, robot, spec.scale)
 
