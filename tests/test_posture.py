@@ -122,3 +122,33 @@ def test_the_shoulder_axes_are_horizontal_orthonormal_and_right_handed(values):
         [np.linalg.norm(across), np.linalg.norm(front), across @ front], [1, 1, 0], atol=1e-12
     )
     np.testing.assert_allclose(np.cross(across, front), [0.0, 0.0, 1.0], atol=1e-12)
+
+
+@pytest.mark.parametrize("name", ["armar3", "armar6", "dual_panda"])
+def test_elbows_ahead_has_the_jacobian_of_its_residual_and_acts_only_behind(name):
+    """ElbowsAhead (issue 28): its Jacobian is the central difference of its residual (ARMAR-III's
+    hip moves the shoulders and turns the plane), and it is zero, with a zero Jacobian, wherever
+    both elbows are in front of the allowance; its residual is how far behind an elbow is."""
+    from hlik.criteria.elbows import ElbowsAhead
+    from hlik.robot.state import robot_state
+
+    robot = load_robot(name)
+    rng = np.random.default_rng(7)
+    everywhere = ElbowsAhead(allowance=-1.0)  # active in any pose: the derivative is checked
+    for _ in range(3):
+        q = np.clip(robot.home + rng.normal(0.0, 0.3, robot.dof), robot.lower, robot.upper)
+        state = robot_state(robot, q[None], jacobians=True)
+        jac = everywhere.jacobian(state, None)[0]
+        fd = np.empty_like(jac)
+        for k in range(robot.dof):
+            dq = np.zeros(robot.dof)
+            dq[k] = 1e-6
+            up, down = (everywhere.residual(robot_state(robot, (q + s * dq)[None]), None)[0] for s in (1, -1))
+            fd[:, k] = (up - down) / 2e-6
+        np.testing.assert_allclose(jac, fd, atol=1e-7)
+    home = robot_state(robot, robot.home[None], jacobians=True)
+    term = ElbowsAhead()
+    ahead = robot_posture(robot, robot.home[None]).elbow_front  # share of an arm's length
+    e = term.residual(home, None)[0]
+    assert np.all(e >= 0) and np.all((e > 0) == (everywhere.residual(home, None)[0] > 1.02))
+    assert np.all(e[ahead[0] > 0] == 0) and np.all(term.jacobian(home, None)[0][e == 0] == 0)
