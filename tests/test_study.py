@@ -4,6 +4,8 @@ end (Parquet schema, resume, failures) and the derived metric's round trip throu
 from __future__ import annotations
 
 import json
+import os
+from pathlib import Path
 from types import MappingProxyType
 
 import numpy as np
@@ -317,3 +319,92 @@ def test_findings_are_judged_only_on_enough_data():
         "across robots none with 1 robot" in one.deviation_text()
         and "0.050 (paper 0.1)" in one.deviation_text()
     )
+
+
+# --- Ray: a study that stops cleanly, joins a cluster, falls back (issue 30) ----------------------
+
+
+def _free_port() -> int:
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def _ray_processes() -> set[int]:
+    """PIDs of Ray's processes on this machine (their names, as ``ps`` shows them)."""
+    import subprocess
+
+    ps = subprocess.run(["ps", "-eo", "pid=,args="], capture_output=True, text=True).stdout
+    marks = ("ray::", "raylet", "gcs_server", "ray/dashboard", "log_monitor.py")
+    return {int(line.split()[0]) for line in ps.splitlines() if any(m in line for m in marks)}
+
+
+def test_a_local_ray_that_does_not_start_falls_back_in_one_line(tmp_path, monkeypatch):
+    ray = pytest.importorskip("ray")
+
+    def fail(*args, **kwargs):
+        raise RuntimeError("The current node timed out during startup.\nThis could happen because ...")
+
+    monkeypatch.setattr(ray, "init", fail)
+    notes: list[str] = []
+    cells = plan([demo_motion_path()], ["dual_panda"], TINY[:1], 0.3)
+    outcomes = run_cells(cells, tmp_path, workers=2, notes=notes)
+    assert not any(o.error for o in outcomes) and len(outcomes) == 1
+    why = "The current node timed out during startup. This could happen because ..."
+    assert notes == [f"Ray did not start ({why}): the cells run in this process"]
+
+
+@pytest.mark.parametrize(("signum", "code"), [("TERM", 143), ("INT", 130), ("KILL", -9)])
+def test_a_ray_study_stopped_by_a_signal_leaves_no_ray_process(tmp_path, signum, code):
+    """SIGTERM ends the study as Ctrl-C does (not Ray's C++ dump, exit -6), and after any of the
+    three no process of its local Ray is left (SIGKILL: study/reaper.py ends them)."""
+    import signal as signals
+    import subprocess
+    import sys
+    import time
+
+    pytest.importorskip("ray")
+    before = _ray_processes()
+    args = [sys.executable, "-m", "hlik", "study", str(demo_motion_path()), "--robots", "dual_panda"]
+    args += ["--approaches", "quick", "--seconds", "4", "--workers", "2", "--out", str(tmp_path / "s")]
+    env = {**os.environ, "HLIK_CORPUS": "demo"}
+    study = subprocess.Popen(args, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 120
+    while not list((tmp_path / "s" / "cells").glob("*.parquet")) and time.monotonic() < deadline:
+        time.sleep(0.5)  # Ray up and the first cell written
+    assert study.poll() is None, study.communicate()
+    study.send_signal(getattr(signals, f"SIG{signum}"))
+    out, err = study.communicate(timeout=60)
+    assert study.returncode == code, err
+    assert "SIGTERM received" not in err and "Traceback" not in err, err
+    time.sleep(5)  # the reaper's SIGTERM, then SIGKILL after 2 s
+    assert _ray_processes() <= before
+
+
+def test_a_study_joins_a_ray_cluster_with_token_authentication(tmp_path):
+    """A head node started the usual way (``ray start --head``; Ray >= 2.59 turns token
+    authentication on for it) is joined through ``--address`` without setting anything."""
+    import subprocess
+    import sys
+
+    pytest.importorskip("ray")
+    ray_cli = Path(sys.executable).with_name("ray")
+    port = _free_port()
+    env = {k: v for k, v in os.environ.items() if not k.startswith("RAY_")}
+    head = [str(ray_cli), "start", "--head", f"--port={port}", "--num-cpus=2", "--include-dashboard=false"]
+    subprocess.run(head, env=env, check=True, capture_output=True, timeout=120)
+    try:
+        args = [sys.executable, "-m", "hlik", "study", str(demo_motion_path()), "--robots", "dual_panda"]
+        args += ["--approaches", "quick", "--seconds", "0.5", "--address", f"127.0.0.1:{port}"]
+        args += ["--out", str(tmp_path / "s")]
+        done = subprocess.run(
+            args, env={**env, "HLIK_CORPUS": "demo"}, capture_output=True, text=True, timeout=300
+        )
+        assert done.returncode == 0, done.stderr[-2000:]
+        assert (
+            "gcs_client" not in done.stderr and len(list((tmp_path / "s" / "cells").glob("*.parquet"))) == 16
+        )
+    finally:
+        subprocess.run([str(ray_cli), "stop", "--force"], env=env, capture_output=True, timeout=120)

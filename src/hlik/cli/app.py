@@ -103,7 +103,8 @@ CorpusOpt = Annotated[
         show_default=False,
     ),
 ]
-# The line said whenever criteria or scores come from the synthetic demo.
+# The line said whenever criteria or scores come from the synthetic demo for want of a corpus
+# (not where --corpus demo or HLIK_CORPUS=demo chose it).
 DEMO_CORPUS_WARNING = (
     "criteria learned from the bundled demo, a 12 s pour and wipe authored here, not recorded: "
     "the synergies, swivel regressor and lambda_R of SYN, MIS, EEA, SYN_r, EEA_r and MAN_r are not a "

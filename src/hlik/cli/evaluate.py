@@ -45,10 +45,10 @@ def evaluate(
         check_scenario(scenario)
         unified_metric = load_metric(metric) if metric is not None else None
         traj, r = trajectory_and_robot(trajectory)
-        folder, _ = resolve_corpus(corpus)
+        folder, source = resolve_corpus(corpus)
         learned = learn(r, folder)
         ev = evaluate_trajectory(traj, r, learned, scenario=scenario, metric=unified_metric)
-    warn([*learned.notes, *([DEMO_CORPUS_WARNING] if folder is None else [])])
+    warn([*learned.notes, *([DEMO_CORPUS_WARNING] if folder is None and not source else [])])
     if json_out:
         sys.stdout.write(json.dumps(ev.to_json(), indent=2) + "\n")
         return

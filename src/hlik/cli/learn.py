@@ -59,7 +59,7 @@ def learn(
         console.print(
             f"corpus {corpus} remembered in {remembered}: the default of later commands", soft_wrap=True
         )
-    elif corpus is None:
+    elif corpus is None and not source:
         warn([DEMO_CORPUS_WARNING])
     else:
         console.print(f"corpus {corpus} ({source})", soft_wrap=True)

@@ -211,7 +211,8 @@ def _report(result: RunResult, rrd: Path, npz: Path, corpus_source: str) -> None
         f"m_hl,f = {ev.m_hl_f:.3f}, weights and x0: {ev.metric.source}",
         soft_wrap=True,
     )
-    warn([*result.warnings, *([DEMO_CORPUS_WARNING] if spec.corpus is None else [])])  # at the end, seen
+    fallback = spec.corpus is None and not corpus_source  # the demo, chosen by no one
+    warn([*result.warnings, *([DEMO_CORPUS_WARNING] if fallback else [])])  # at the end, where seen
     # the same scores again: everything that changed them here is passed on
     details = ["hlik", "evaluate", str(npz), "--scenario", result.scenario]
     details += ["--corpus", str(spec.corpus) if spec.corpus is not None else DEMO]

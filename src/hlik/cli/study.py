@@ -128,6 +128,7 @@ def _report(result: StudyResult) -> None:
             table.add_row(r["approach"], f"{r['m_hl']:.3f}", f"{r['m_f']:.3f}", f"{r['m_hl_f']:.3f}")
         console.print(table)
     reused = sum(o.reused for o in result.outcomes)
+    warn(list(result.notes))
     if failed:
         warn(
             [

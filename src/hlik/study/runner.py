@@ -6,9 +6,14 @@ from __future__ import annotations
 import functools
 import logging
 import os
+import signal
+import sys
+import tempfile
+import threading
 import time
 import traceback
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -21,6 +26,7 @@ from hlik.robot.reachability import reachability_map
 from hlik.study.analysis import Correlation, Ranking, correlate, correlation_frames, derive_metric, rank
 from hlik.study.approaches import Approach
 from hlik.study.dataset import Cell, cell_motion, read_dataset, run_cell, write_cell
+from hlik.study.reaper import start_reaper
 from hlik.study.report import write_report
 from hlik.util.atomic import atomic_path
 from hlik.util.errors import HlikError
@@ -93,6 +99,7 @@ def run_cells(
     workers: int | None = None,
     address: str | None = None,
     progress: Callable[[CellOutcome], None] | None = None,
+    notes: list[str] | None = None,
 ) -> list[CellOutcome]:
     """Run the cells whose file is missing in ``folder`` (the others are reused).
 
@@ -109,7 +116,7 @@ def run_cells(
     for outcome in done:
         if progress:
             progress(outcome)
-    ray = _ray(workers, address) if todo else None
+    ray = _ray(workers, address, notes if notes is not None else []) if todo else None
     outcomes = list(done)
     if ray is None:
         for cell in todo:
@@ -117,20 +124,31 @@ def run_cells(
             if progress:
                 progress(outcomes[-1])
         return outcomes
-    task = ray.remote(solve_cell)
-    pending = [task.remote(cell, folder) for cell in todo]
-    while pending:
-        ready, pending = ray.wait(pending, num_returns=1)
-        outcomes.append(ray.get(ready[0]))
-        if progress:
-            progress(outcomes[-1])
+    try:
+        with _signals_through_ray():
+            task = ray.remote(solve_cell)
+            pending = [task.remote(cell, folder) for cell in todo]
+            while pending:
+                ready, pending = ray.wait(pending, num_returns=1)
+                outcomes.append(ray.get(ready[0]))
+                if progress:
+                    progress(outcomes[-1])
+    finally:  # also on Ctrl-C and SIGTERM: the local cluster's processes end with the study
+        ray.shutdown()
     return outcomes
 
 
-def _ray(workers: int | None, address: str | None):
-    """Ray, initialised for ``workers`` CPUs (or joined to ``address``); None to run in-process."""
+def _ray(workers: int | None, address: str | None, notes: list[str]):
+    """Ray, initialised for ``workers`` CPUs (or joined to ``address``); None to run in-process
+    (``workers`` 1, Ray not installed, or a local Ray that did not start: said in ``notes``).
+
+    Raises:
+        HlikError: the cluster at ``address`` cannot be joined (one line, with what to set).
+    """
     if workers == 1 and address is None:
         return None
+    if address:
+        _token_auth()  # read by Ray when it is imported
     try:
         import ray
     except ImportError:
@@ -140,11 +158,107 @@ def _ray(workers: int | None, address: str | None):
         env = {"env_vars": {"PYTHONPATH": os.pathsep.join([src, os.environ.get("PYTHONPATH", "")])}}
         # hlik prints its own progress; Ray's start-up INFO and WARNING lines would break the bar
         quiet: dict[str, Any] = {"runtime_env": env, "log_to_driver": False, "logging_level": logging.ERROR}
-        if address:
-            ray.init(address=address, **quiet)
-        else:
-            ray.init(num_cpus=workers or os.cpu_count(), include_dashboard=False, **quiet)
+        # Ray's core worker installs C++ handlers that answer SIGTERM (and SIGINT) with a stack dump
+        # and abort (exit -6): keep hlik's, which end the study through its finally blocks.
+        handlers = _stop_handlers()
+        said: list[str] = []
+        try:
+            if address:
+                with _native_stderr(said):
+                    ray.init(address=address, **quiet)
+            else:
+                start_reaper()  # Ray's agents outlive a killed study otherwise (study/reaper.py)
+                with _native_stderr(said):
+                    ray.init(num_cpus=workers or os.cpu_count(), include_dashboard=False, **quiet)
+        except Exception as e:  # Ray raises ConnectionError, RuntimeError, TimeoutError, ...
+            why = _one_line(str(e) or type(e).__name__)
+            if address:
+                raise HlikError(
+                    f"--address {address}: cannot join the Ray cluster: {why}{_auth_hint(said)}"
+                ) from None
+            notes.append(f"Ray did not start ({why}): the cells run in this process")
+            return None
+        finally:
+            for signum, handler in handlers.items():
+                signal.signal(signum, handler)
     return ray
+
+
+def _token_auth() -> None:
+    """Join a cluster started with token authentication (``ray start --head`` does by default since
+    Ray 2.59) as Ray documents: ``RAY_AUTH_MODE=token`` where a token is at hand (``RAY_AUTH_TOKEN``,
+    ``RAY_AUTH_TOKEN_PATH`` or ``~/.ray/auth_token``), unless the user set the mode."""
+    if "RAY_AUTH_MODE" in os.environ:
+        return
+    paths = [os.environ.get("RAY_AUTH_TOKEN_PATH", ""), str(Path.home() / ".ray" / "auth_token")]
+    if os.environ.get("RAY_AUTH_TOKEN") or any(p and Path(p).is_file() for p in paths):
+        os.environ["RAY_AUTH_MODE"] = "token"
+
+
+def _auth_hint(said: list[str]) -> str:
+    """What to set, where Ray's own log said the token was missing or wrong."""
+    if any("Unauthenticated" in line or "InvalidAuthToken" in line for line in said):
+        return (
+            "; the cluster wants its token: set RAY_AUTH_MODE=token and RAY_AUTH_TOKEN (or put it in "
+            "~/.ray/auth_token; `ray get-auth-token` on the head node prints it)"
+        )
+    return ""
+
+
+def _one_line(text: str) -> str:
+    return " ".join(text.split())[:300]
+
+
+@contextmanager
+def _native_stderr(said: list[str]) -> Iterator[None]:
+    """Ray's C++ core logs to file descriptor 2 while it connects (a line a second, for 20 s, when a
+    token is missing): keep those lines from the terminal, read into ``said`` when the block ends
+    (for the one-line error)."""
+    sys.stderr.flush()
+    saved = os.dup(2)
+    with tempfile.TemporaryFile(mode="w+b") as log:
+        os.dup2(log.fileno(), 2)
+        try:
+            yield
+        finally:
+            sys.stderr.flush()
+            os.dup2(saved, 2)
+            os.close(saved)
+            log.seek(0)
+            said += log.read().decode(errors="replace").splitlines()
+
+
+@contextmanager
+def _signals_through_ray() -> Iterator[None]:
+    """Ctrl-C and SIGTERM end the study as they end any command (KeyboardInterrupt, exit 130; hlik's
+    SIGTERM exit, 143): Ray turns whatever a signal handler raises inside ``ray.wait`` into
+    ``SystemExit(1)``, so the signal is remembered and its own handler called again outside."""
+    handlers = _stop_handlers()
+    came: list[int] = []
+
+    def remember(signum: int, frame: Any) -> None:
+        came.append(signum)
+        handlers[signum](signum, frame)
+
+    for signum, handler in handlers.items():
+        if callable(handler):
+            signal.signal(signum, remember)
+    try:
+        yield
+    except SystemExit:
+        if came and callable(handlers[came[0]]):
+            handlers[came[0]](came[0], None)
+        raise
+    finally:
+        for signum, handler in handlers.items():
+            signal.signal(signum, handler)
+
+
+def _stop_handlers() -> dict[int, Any]:
+    """The Python handlers of SIGINT and SIGTERM (main thread only; none elsewhere)."""
+    if threading.current_thread() is not threading.main_thread():
+        return {}
+    return {s: h for s in (signal.SIGINT, signal.SIGTERM) if (h := signal.getsignal(s)) is not None}
 
 
 @dataclass(frozen=True)
@@ -158,6 +272,7 @@ class StudyResult:
     report: Path
     metric_file: Path
     wall_seconds: float
+    notes: tuple[str, ...] = ()  # one line each: how the cells ran where not as asked (Ray)
 
 
 def run_study(
@@ -181,7 +296,8 @@ def run_study(
     out.mkdir(parents=True, exist_ok=True)
     cells = plan(takes, robots, approaches, seconds, corpus)
     prepare(robots, corpus)
-    outcomes = run_cells(cells, out / "cells", workers, address, progress)
+    notes: list[str] = []
+    outcomes = run_cells(cells, out / "cells", workers, address, progress, notes)
     table = read_dataset([o.path for o in outcomes if o.path is not None])
     frames = correlation_frames(table, {a.name for a in approaches if a.correlation}) if len(table) else table
     if not len(frames):
@@ -218,4 +334,4 @@ def run_study(
     }
     failures = [(o.cell.file_name, o.error) for o in outcomes if o.error is not None]
     report = write_report(out, corr, metric, rankings, summary, failures)
-    return StudyResult(tuple(outcomes), corr, metric, rankings, report, metric_file, wall)
+    return StudyResult(tuple(outcomes), corr, metric, rankings, report, metric_file, wall, tuple(notes))
