@@ -97,12 +97,18 @@ def test_a_trajectory_a_controller_rejects_is_refused_naming_frame_and_joint(pan
 
 
 def test_hlik_export_refuses_a_jm_run_and_writes_a_qp_run(tmp_path):
-    """JM maps joint angles without the speed limits; the QP keeps them."""
+    """JM maps joint angles without the speed limits; the QP keeps them. ``hlik run --export``
+    writes the export beside the run's files, or says in a warning why not."""
     runner = CliRunner()
+    runs = {}
     for solver in ("jm", "qp"):
         out = tmp_path / f"{solver}.rrd"
-        result = runner.invoke(app, ["run", "--robot", "armar6", "--solver", solver, "-o", str(out)])
-        assert result.exit_code == 0, result.output
+        args = ["run", "--robot", "armar6", "--solver", solver, "-o", str(out), "--export", "lerobot"]
+        runs[solver] = runner.invoke(app, args)
+        assert runs[solver].exit_code == 0, runs[solver].output
+    assert "not exported: frame" in runs["jm"].stderr and "--allow-violations --force" in runs["jm"].stderr
+    assert not (tmp_path / "jm_lerobot").exists()
+    assert (tmp_path / "qp_lerobot" / "meta" / "info.json").is_file() and "exported: " in runs["qp"].stdout
     refused = runner.invoke(app, ["export", str(tmp_path / "jm.npz")])
     assert refused.exit_code == 2 and "not exported: frame" in refused.output
     assert not (tmp_path / "jm.csv").exists()
@@ -165,3 +171,40 @@ def test_an_output_named_for_another_format_is_refused(tmp_path):
     )
     assert result.exit_code == 2 and "--format mcap writes .mcap files" in result.output
     assert not (tmp_path / "x.csv").exists()
+
+
+def test_lerobot_round_trip_gives_back_names_times_state_and_action(panda_qp, tmp_path):
+    """The LeRobot v3 folder read back with pyarrow (and with LeRobot's own loader where it is
+    installed; it needs PyTorch): the joints by name, the frames' times, state = q, action = the
+    next q, the layout's metadata consistent."""
+    import json
+
+    import pyarrow.parquet as pq
+
+    robot, traj = panda_qp
+    folder = export(traj, robot, tmp_path / "take_lerobot", "lerobot")
+    info = json.loads((folder / "meta" / "info.json").read_text())
+    assert info["codebase_version"] == "v3.0" and info["fps"] == 100 and info["total_frames"] == traj.n_frames
+    assert info["features"]["observation.state"]["names"] == list(robot.joint_names)
+    data = pq.read_table(folder / info["data_path"].format(chunk_index=0, file_index=0)).to_pydict()
+    state, action = np.array(data["observation.state"]), np.array(data["action"])
+    np.testing.assert_array_equal(state, traj.q.astype(np.float32))
+    np.testing.assert_array_equal(action[:-1], state[1:])
+    np.testing.assert_array_equal(action[-1], state[-1])
+    np.testing.assert_allclose(data["timestamp"], traj.times - traj.times[0], atol=1e-6)
+    assert data["index"] == data["frame_index"] == list(range(traj.n_frames))
+    episode = pq.read_table(folder / "meta/episodes/chunk-000/file-000.parquet").to_pylist()[0]
+    assert episode["length"] == episode["dataset_to_index"] == traj.n_frames
+    tasks = pq.read_table(folder / "meta" / "tasks.parquet")
+    assert tasks.column("task").to_pylist() == episode["tasks"] and tasks.schema.pandas_metadata[
+        "index_columns"
+    ] == ["task"]
+    stats = json.loads((folder / "meta" / "stats.json").read_text())
+    np.testing.assert_allclose(stats["action"]["max"], action.max(axis=0), rtol=1e-6)
+    try:
+        from lerobot.datasets.lerobot_dataset import LeRobotDataset
+    except ImportError:
+        return
+    dataset = LeRobotDataset("local/take", root=folder)
+    assert len(dataset) == traj.n_frames and dataset.fps == 100
+    np.testing.assert_array_equal(dataset[7]["action"].numpy(), state[8])

@@ -15,10 +15,20 @@ from hlik.util.errors import HlikError
 def export(
     trajectory: Annotated[Path, typer.Argument(help="Trajectory .npz written by `hlik run`.")],
     fmt: Annotated[
-        str, typer.Option("--format", "-f", help="Export format: csv or mcap (ROS 2 messages).")
+        str,
+        typer.Option(
+            "--format",
+            "-f",
+            help="Export format: csv, mcap (ROS 2 messages) or lerobot (a LeRobot v3 dataset folder).",
+        ),
     ] = "csv",
     out: Annotated[
-        Path | None, typer.Option("--out", "-o", help="Output file (default: the trajectory's, new suffix).")
+        Path | None,
+        typer.Option(
+            "--out",
+            "-o",
+            help="Output file (default: the trajectory's, new suffix; lerobot: a folder NAME_lerobot).",
+        ),
     ] = None,
     allow_violations: Annotated[
         bool,
@@ -42,8 +52,11 @@ def export(
         if fmt not in WRITERS:
             raise HlikError(f"unknown export format {fmt!r}; choose one of: {', '.join(WRITERS)}")
         suffix = WRITERS[fmt][1]
-        path = out or trajectory.with_suffix(suffix)
-        if path.suffix.lower() != suffix:
+        default = (
+            trajectory.with_suffix(suffix) if suffix else trajectory.with_name(f"{trajectory.stem}_lerobot")
+        )
+        path = out or default
+        if suffix and path.suffix.lower() != suffix:
             raise HlikError(f"{path}: --format {fmt} writes {suffix} files; name the output so")
         if path.exists() and not force:
             raise HlikError(f"{path}: exists; pass --force to replace it, or --out to write elsewhere")

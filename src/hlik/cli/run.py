@@ -100,6 +100,14 @@ ScaleOpt = Annotated[
 ]
 
 
+ExportOpt = Annotated[
+    str | None,
+    typer.Option(
+        help="Also export the trajectory for a robot's software (as `hlik export`): csv, mcap or lerobot; "
+        "beside the .npz. A trajectory a controller would reject is not exported (a warning says why).",
+        show_default=False,
+    ),
+]
 SpanOpt = Annotated[
     str | None,
     typer.Option(
@@ -144,6 +152,7 @@ def run(
     scale: ScaleOpt = None,
     metric: MetricOpt = None,
     span: SpanOpt = None,
+    export: ExportOpt = None,
 ) -> None:
     """Retarget a motion to a robot; write a Rerun recording and the trajectory (.npz) beside it."""
     from hlik.recording.layout import LAYOUTS
@@ -170,9 +179,12 @@ def run(
         if layout not in LAYOUTS:
             raise HlikError(f"unknown layout {layout!r}; choose one of: {', '.join(LAYOUTS)}")
         spec.check()  # names, numbers and files before the heavy imports below
+        from hlik.export import WRITERS
         from hlik.pipeline import run as run_pipeline
         from hlik.robot.model import load_robot
 
+        if export is not None and export not in WRITERS:
+            raise HlikError(f"unknown --export format {export!r}; choose one of: {', '.join(WRITERS)}")
         r = load_robot(robot)
         stem = file_stem(spec.motion_path.stem, r.name, _tag(spec, r, layout, corpus_source))
         rrd = out or Path("recordings") / f"{stem}.rrd"
@@ -189,6 +201,8 @@ def run(
             info = _settings(result, layout)
             write_outputs(npz, rrd, result.trajectory, r, layout, evaluation=result.evaluation, info=info)
     _report(result, rrd, npz, corpus_source)
+    if export is not None:
+        _export(result, npz, export)
 
 
 def _report(result: RunResult, rrd: Path, npz: Path, corpus_source: str) -> None:
@@ -220,6 +234,26 @@ def _report(result: RunResult, rrd: Path, npz: Path, corpus_source: str) -> None
     # Commands to copy: each on its own line, never wrapped inside a path.
     console.print(f"details: {shlex.join(details)}", soft_wrap=True)
     console.print(f"open with: rerun {shlex.quote(str(rrd))}", soft_wrap=True)
+
+
+def _export(result: RunResult, npz: Path, fmt: str) -> None:
+    """``hlik export NPZ --format FMT --force`` of the run just written (a run's default names are
+    its own, so an export of an earlier run of the same name is replaced with it); a refusal is a
+    warning, the run's own files stand, with the command that writes it anyway."""
+    from hlik.export import WRITERS, export
+
+    suffix = WRITERS[fmt][1]
+    path = npz.with_suffix(suffix) if suffix else npz.with_name(f"{npz.stem}_lerobot")
+    with one_line():  # a failed write (full disk) is an error
+        try:
+            written = export(result.trajectory, result.robot, path, fmt)
+        except HlikError as refused:
+            command = shlex.join(
+                ["hlik", "export", str(npz), "--format", fmt, "--allow-violations", "--force"]
+            )
+            warn([f"{refused}; to write it anyway: {command}"])
+            return
+    console.print(f"exported: {written} ({fmt})", soft_wrap=True)
 
 
 def _settings(result: RunResult, layout: str) -> dict[str, str]:

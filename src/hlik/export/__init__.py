@@ -4,10 +4,12 @@ a controller rejects (:mod:`~hlik.export.violations`).
 - ``csv``: one row per frame, ``time`` then the joints by name and the base pose
   (:mod:`~hlik.export.csvfile`);
 - ``mcap``: ROS 2 messages, joint states, the joint trajectory and the hands' target poses
-  (:mod:`~hlik.export.mcapfile`).
+  (:mod:`~hlik.export.mcapfile`);
+- ``lerobot``: a LeRobot v3.0 dataset folder, joint positions as state, the next ones as action
+  (:mod:`~hlik.export.lerobotfile`).
 
-A format adds one module with a ``write(traj, robot, path, allowed)`` function and one line in
-:data:`WRITERS`.
+A format adds one module with a ``write(traj, robot, path, violation)`` function and one line in
+:data:`WRITERS` (its suffix; "" for a folder).
 """
 
 from __future__ import annotations
@@ -16,16 +18,16 @@ from collections.abc import Callable, Mapping
 from pathlib import Path
 from types import MappingProxyType
 
-from hlik.export import csvfile, mcapfile
+from hlik.export import csvfile, lerobotfile, mcapfile
 from hlik.export.violations import first_violation
 from hlik.robot.model import Robot
 from hlik.trajectory import Trajectory
-from hlik.util.atomic import atomic_path
+from hlik.util.atomic import atomic_folder, atomic_path
 from hlik.util.errors import HlikError
 
-# format -> (writer into a path, file suffix)
+# format -> (writer into a path, file suffix; "" writes a folder)
 WRITERS: Mapping[str, tuple[Callable[[Trajectory, Robot, Path, str | None], None], str]] = MappingProxyType(
-    {"csv": (csvfile.write, ".csv"), "mcap": (mcapfile.write, ".mcap")}
+    {"csv": (csvfile.write, ".csv"), "mcap": (mcapfile.write, ".mcap"), "lerobot": (lerobotfile.write, "")}
 )
 
 
@@ -46,9 +48,9 @@ def export(
     violation = first_violation(traj, robot)
     if violation is not None and not allow_violations:
         raise HlikError(f"{path}: not exported: {violation} (--allow-violations writes it anyway)")
-    write, _ = WRITERS[fmt]
+    write, suffix = WRITERS[fmt]
     path = Path(path)
-    with atomic_path(path) as tmp:
+    with atomic_path(path) if suffix else atomic_folder(path) as tmp:
         write(traj, robot, tmp, violation)
     return path
 

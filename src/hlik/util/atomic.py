@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import os
 import secrets
+import shutil
 import signal
 import sys
 import threading
@@ -35,6 +36,30 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
             os.replace(tmp, path)
         except BaseException as e:
             tmp.unlink(missing_ok=True)
+            _name_the_target(e, {str(tmp): path})
+            raise
+
+
+@contextmanager
+def atomic_folder(path: str | Path) -> Iterator[Path]:
+    """A temporary folder beside ``path`` to write into; renamed onto ``path`` when the block
+    succeeds (a folder already there is replaced, and removed only after the rename), removed when
+    it fails or SIGINT/SIGTERM ends the program."""
+    path = Path(path)
+    tmp = _temporary(path)
+    with raising_on_sigterm() as termination:
+        try:
+            tmp.mkdir(mode=0o755)
+            yield tmp
+            termination.check()
+            old = _temporary(path) if path.is_dir() else None
+            if old is not None:
+                os.replace(path, old)
+            os.replace(tmp, path)
+            if old is not None:
+                shutil.rmtree(old)
+        except BaseException as e:
+            shutil.rmtree(tmp, ignore_errors=True)
             _name_the_target(e, {str(tmp): path})
             raise
 
