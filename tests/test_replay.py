@@ -74,3 +74,13 @@ def test_hlik_replay_reports_per_hand_and_says_whether_it_follows(tmp_path):
     assert result.exit_code == 0, result.output
     assert "left TCP off the commanded one" in result.output and "right TCP" in result.output
     assert "the simulated robot follows the commanded motion within 1 cm" in result.output
+    # the replay's own recording: the simulated robot over the commanded one, its TCPs' distance
+    recording = tmp_path / "qp_replay.rrd"
+    assert recording.is_file() and f"rerun {recording}" in result.output
+    from rerun.chunk import RrdReader
+
+    entities = {chunk.entity_path for chunk in RrdReader(recording).stream().to_chunks()}
+    assert any(e.startswith("/world/robot/simulated/") for e in entities)
+    assert {"/plots/fPOS/simulated_left", "/plots/fPOS/simulated_right"} <= entities
+    again = runner.invoke(app, ["replay", str(out.with_suffix(".npz"))])
+    assert again.exit_code == 2 and "exists; pass --force" in again.output

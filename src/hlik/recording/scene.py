@@ -25,10 +25,16 @@ def _display_placement(placement: Placement, layout: str) -> Placement:
 
 
 def _model(
-    rec, root: str, model: mujoco.MjModel, qpos: Callable[[slice], np.ndarray], times: np.ndarray, alpha: int
+    rec,
+    root: str,
+    model: mujoco.MjModel,
+    qpos: Callable[[slice], np.ndarray],
+    times: np.ndarray,
+    alpha: int,
+    tint: tuple[int, int, int] | None = None,
 ) -> Track:
-    """Log the static geometry of every body with some; the track of their poses, from
-    ``qpos(frames)`` (F, nq) by forward kinematics."""
+    """Log the static geometry of every body with some (in ``tint`` where given, else the model's
+    colours); the track of their poses, from ``qpos(frames)`` (F, nq) by forward kinematics."""
     bodies = []
     for body in range(1, model.nbody):
         entity = f"{root}/{_entity(model.body(body).name) or f'body{body}'}"
@@ -40,7 +46,7 @@ def _model(
         ]
         if not geoms:
             continue
-        for archetype_name, archetype in _geometry(model, geoms, alpha).items():
+        for archetype_name, archetype in _geometry(model, geoms, alpha, tint).items():
             rec.log(f"{entity}/{archetype_name}", archetype, static=True)
         bodies.append((body, entity))
 
@@ -54,7 +60,9 @@ def _model(
     return track
 
 
-def _geometry(model: mujoco.MjModel, geoms: list[int], alpha: int) -> dict[str, rr.AsComponents]:
+def _geometry(
+    model: mujoco.MjModel, geoms: list[int], alpha: int, tint: tuple[int, int, int] | None = None
+) -> dict[str, rr.AsComponents]:
     """Rerun primitives for MuJoCo geoms, in their body's frame, one batch per kind."""
     batches: dict[str, dict[str, list]] = {}
     meshes = [g for g in geoms if model.geom_type[g] == mujoco.mjtGeom.mjGEOM_MESH]
@@ -69,14 +77,16 @@ def _geometry(model: mujoco.MjModel, geoms: list[int], alpha: int) -> dict[str, 
         for key, value in fields(model.geom_size[g], model.geom_pos[g], rot.reshape(3, 3)).items():
             batch.setdefault(key, []).append(value)
         batch["quaternions"].append(xyzw(model.geom_quat[g]))
-        batch["colors"].append((*np.round(255 * model.geom_rgba[g, :3]).astype(int), alpha))
+        batch["colors"].append((*(tint or np.round(255 * model.geom_rgba[g, :3]).astype(int)), alpha))
     archetypes = {kind: _ARCHETYPES[kind](**batch, fill_mode=_FILL) for kind, batch in batches.items()}
     if meshes:
-        archetypes["mesh"] = _mesh(model, meshes, alpha)
+        archetypes["mesh"] = _mesh(model, meshes, alpha, tint)
     return archetypes
 
 
-def _mesh(model: mujoco.MjModel, geoms: list[int], alpha: int) -> rr.Mesh3D:
+def _mesh(
+    model: mujoco.MjModel, geoms: list[int], alpha: int, tint: tuple[int, int, int] | None = None
+) -> rr.Mesh3D:
     """One Rerun mesh of a body's mesh geoms (models imported from URDF or Menagerie), in the
     body's frame: MuJoCo stores each mesh centred in its geom's frame."""
     positions, triangles, colors, offset = [], [], [], 0
@@ -91,7 +101,7 @@ def _mesh(model: mujoco.MjModel, geoms: list[int], alpha: int) -> rr.Mesh3D:
         offset += len(vert)
         mat = int(model.geom_matid[g])
         rgba = model.mat_rgba[mat] if mat >= 0 else model.geom_rgba[g]
-        colors.append(np.tile((*np.round(255 * rgba[:3]).astype(int), alpha), (len(vert), 1)))
+        colors.append(np.tile((*(tint or np.round(255 * rgba[:3]).astype(int)), alpha), (len(vert), 1)))
     return rr.Mesh3D(
         vertex_positions=np.concatenate(positions),
         triangle_indices=np.concatenate(triangles),

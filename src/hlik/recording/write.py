@@ -37,6 +37,7 @@ from hlik.recording.style import (
 )
 from hlik.recording.view import _joint_unit, blueprint, joint_groups, robot_camera, scene_camera
 from hlik.robot.model import SIDES, Robot
+from hlik.robot.state import robot_state
 from hlik.trajectory import Trajectory
 from hlik.util.atomic import atomic_path
 
@@ -50,6 +51,7 @@ def write_recording(
     chunk_frames: int = CHUNK_FRAMES,
     evaluation: Evaluation | None = None,
     info: Mapping[str, str] | None = None,
+    simulated: np.ndarray | None = None,
 ) -> Path:
     """Write ``trajectory`` as a Rerun ``.rrd`` file, atomically: exactly ``path`` appears, whole.
 
@@ -72,6 +74,10 @@ def write_recording(
         info: Free-form settings shown in the text panel, key -> value (``stack``, ``criteria``,
             ``corpus``, ``scenario``, ...); scenario ``relative`` (or the evaluation's) makes
             fPOS_off / fORI_off the main tracking plots.
+        simulated: (T, n) joint angles of the trajectory replayed through physics
+            (:func:`hlik.replay.replay`), drawn translucent orange over the commanded robot
+            (``/world/robot/simulated``), each simulated TCP's distance from the commanded one
+            plotted beside fPOS (``/plots/fPOS/simulated_<side>``, m).
     """
     _check_arguments(layout, chunk_frames)
     curves = _score_curves(trajectory, metrics, evaluation)
@@ -95,7 +101,7 @@ def write_recording(
         try:
             rec.set_log_time_enabled(False)
             rec.save(tmp, default_blueprint=view)
-            _log(rec, trajectory, robot, layout, curves, chunk_frames, scenario, evaluation, fit)
+            _log(rec, trajectory, robot, layout, curves, chunk_frames, scenario, evaluation, fit, simulated)
             _log_result(rec, summary(trajectory, robot, evaluation, info), evaluation)
         finally:
             rec.disconnect()  # writes the footer; the file is complete only now
@@ -166,13 +172,18 @@ def _log(
     scenario: str = "pose",
     evaluation: Evaluation | None = None,
     fit: np.ndarray | None = None,
+    simulated: np.ndarray | None = None,
 ) -> None:
     """Log everything static once, then every track chunk by chunk of ``chunk_frames`` frames.
 
-    ``fit`` (T,): the MMM fit error of a motion fitted to keypoints; its keypoints are drawn too."""
+    ``fit`` (T,): the MMM fit error of a motion fitted to keypoints; its keypoints are drawn too.
+    ``simulated`` (T, n): a physics replay's joint angles, drawn over the robot."""
     times = traj.times
     tracks = _scene(rec, traj, robot, layout, chunk_frames, fit)
     curves = _curves(rec, traj, robot, metrics, scenario, evaluation, fit)
+    if simulated is not None:
+        tracks.append(_simulated(rec, robot, simulated, times))
+        curves |= _simulated_curves(rec, traj, robot, simulated)
     tracks.append(functools.partial(_curve_columns, curves, times))
 
     for start in range(0, traj.n_frames, chunk_frames):
@@ -243,6 +254,27 @@ def _scene(
         )
 
     return tracks
+
+
+def _simulated(rec, robot: Robot, q: np.ndarray, times: np.ndarray) -> Track:
+    """The replayed robot, translucent orange, in the commanded robot's base frame."""
+    return _model(
+        rec, "/world/robot/simulated", robot.model, lambda rows: q[rows], times, alpha=110, tint=(255, 140, 0)
+    )
+
+
+def _simulated_curves(rec, traj: Trajectory, robot: Robot, q: np.ndarray) -> dict[str, Curve]:
+    """Each replayed TCP's distance from the commanded one (m), chunk by chunk."""
+    curves: dict[str, Curve] = {}
+    for i, side in enumerate(SIDES):
+        label = f"simulated {side} TCP off the commanded (m)"
+        entity = _curve(rec, f"/plots/fPOS/simulated_{side}", label, TARGET_COLORS[side])
+        curves[entity] = functools.partial(_deviation, robot, q, traj.tcp_pos[:, i], i)
+    return curves
+
+
+def _deviation(robot: Robot, q: np.ndarray, commanded: np.ndarray, arm: int, rows: slice) -> np.ndarray:
+    return np.linalg.norm(robot_state(robot, q[rows]).tcp[:, arm] - commanded[rows], axis=-1)
 
 
 def _curves(
