@@ -278,7 +278,7 @@ def _inputs(spec: RunSpec) -> list:
 
 def _tag(spec: RunSpec, robot: Robot, layout: str, corpus_source: str) -> str:
     """:func:`_run_tag` of a run: the spec's choices that differ from the defaults (the corpus
-    where this command chose it: ``--corpus`` or ``$HLIK_CORPUS``; ``demo`` for the demo)."""
+    folder where this command chose one: ``--corpus`` or ``$HLIK_CORPUS``; never the demo)."""
     from hlik.util.paths import tasks_dir
 
     stack = spec.task_stack()
@@ -296,7 +296,7 @@ def _tag(spec: RunSpec, robot: Robot, layout: str, corpus_source: str) -> str:
         rate=spec.rate,
         layout=layout,
         span=spec.span,
-        corpus=(spec.corpus or Path(DEMO)) if corpus_source in ("--corpus", "HLIK_CORPUS") else None,
+        corpus=spec.corpus if corpus_source in ("--corpus", "HLIK_CORPUS") else None,
     )
 
 
