@@ -162,7 +162,9 @@ def _check_limits(path: str | Path, trajectory: Trajectory, robot: Robot) -> Non
 
 def _read_arrays(path: Path) -> dict[str, np.ndarray]:
     """Every array of the ``.npz`` file, read with ``allow_pickle=False``."""
-    check_readable(path, TrajectoryFormatError, "a trajectory .npz file")
+    check_readable(
+        path, lambda problem: TrajectoryFormatError(f"{path}: {problem}"), "a trajectory .npz file"
+    )
     try:
         archive = np.load(path, allow_pickle=False)
     except (OSError, ValueError, EOFError, zipfile.BadZipFile):

@@ -162,7 +162,9 @@ def check_trajectory_file(path: Path) -> None:
     from hlik.util.errors import TrajectoryFormatError
     from hlik.util.files import check_readable
 
-    check_readable(path, TrajectoryFormatError, "a trajectory .npz file")
+    check_readable(
+        path, lambda problem: TrajectoryFormatError(f"{path}: {problem}"), "a trajectory .npz file"
+    )
 
 
 def trajectory_and_robot(path: Path) -> tuple[Trajectory, Robot]:

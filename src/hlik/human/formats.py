@@ -7,6 +7,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from hlik.util.errors import MotionFormatError
+from hlik.util.files import check_readable
 
 # What :func:`hlik.human.load.load_motion` reads, for the messages.
 READS = "MMM .xml, .bvh, or a keypoint .toml (joint positions in .csv/.txt/.npy/.npz, or a BVH)"
@@ -26,15 +27,7 @@ def motion_format(path: str | Path) -> str:
             formats it does read.
     """
     path = Path(path)
-    try:
-        with path.open("rb") as f:
-            head = f.read(_SNIFF)
-    except FileNotFoundError:
-        raise MotionFormatError(path, "no such file") from None
-    except IsADirectoryError:
-        raise MotionFormatError(path, "is a directory, not a motion file") from None
-    except OSError as e:
-        raise MotionFormatError(path, f"cannot read: {e.strerror}") from None
+    head = check_readable(path, lambda problem: MotionFormatError(path, problem), "a motion file", _SNIFF)
     known = _READERS.get(path.suffix.lower())
     if known is not None:
         return known

@@ -7,20 +7,23 @@ from collections.abc import Callable
 from pathlib import Path
 
 
-def check_readable(path: Path, error: Callable[[str], Exception], expected: str) -> None:
-    """Raise ``error(message)`` unless ``path`` is a file this process can open.
+def check_readable(path: Path, error: Callable[[str], Exception], expected: str, head: int = 0) -> bytes:
+    """The first ``head`` bytes of ``path``; raises ``error(problem)`` unless it is a file this
+    process can open.
 
     Args:
         path: The file.
-        error: The exception class (or factory) of the caller's part, given the one-line message.
+        error: Makes the caller's exception of the problem (``no such file``, ...), which it
+            prefixes with the file's name.
         expected: What the file should be, for the folder case (``a trajectory .npz file``).
+        head: How many bytes to read (0: none).
     """
     try:
-        with path.open("rb"):
-            pass
+        with path.open("rb") as f:
+            return f.read(head) if head else b""
     except FileNotFoundError:
-        raise error(f"{path}: no such file") from None
+        raise error("no such file") from None
     except IsADirectoryError:
-        raise error(f"{path}: is a folder, expected {expected}") from None
+        raise error(f"is a folder, expected {expected}") from None
     except OSError as e:
-        raise error(f"{path}: cannot read ({e.strerror})") from None
+        raise error(f"cannot read ({e.strerror})") from None
