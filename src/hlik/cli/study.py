@@ -91,7 +91,8 @@ def study(
         n_cells = len(plan(files, names, listed, seconds))
         console.print(
             f"study: {len(files)} takes x {len(names)} robots x {len(listed)} approaches = "
-            f"{n_cells} cells -> {out}/"
+            f"{n_cells} cells -> {out}/",
+            soft_wrap=True,  # a path is never broken across lines
         )
         with progress_bar() as progress:
             task = progress.add_task("cells", total=n_cells)
@@ -119,7 +120,11 @@ def _report(result: StudyResult) -> None:
     """The failed cells, the five best approaches per scenario and where the files are."""
     failed = [o for o in result.outcomes if o.error]
     for o in failed:
-        console.print(Text.assemble(("failed", "yellow"), f" {o.cell.file_name}: {o.error}"), highlight=False)
+        console.print(
+            Text.assemble(("failed", "yellow"), f" {o.cell.file_name}: {o.error}"),
+            highlight=False,
+            soft_wrap=True,
+        )
     for ranking in result.rankings:
         table = Table(
             "approach", "m_hl", "m_f", "m_hl,f", title=f"best approaches, {ranking.scenario} scenario"
@@ -139,7 +144,8 @@ def _report(result: StudyResult) -> None:
     console.print(
         f"{len(result.outcomes)} cells ({reused} reused, {len(failed)} failed) in "
         f"{result.wall_seconds:.0f} s; metric: {result.metric_file} (hlik run/evaluate --metric); "
-        f"report: {result.report}"
+        f"report: {result.report}",
+        soft_wrap=True,
     )
 
 
