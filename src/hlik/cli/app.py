@@ -4,6 +4,7 @@ in one line on stderr and exit code 2."""
 from __future__ import annotations
 
 import sys
+import time
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
@@ -188,8 +189,52 @@ def trajectory_and_robot(path: Path) -> tuple[Trajectory, Robot]:
     return traj, robot
 
 
+class _PlainProgress:
+    """Progress for a stderr that is no terminal (piped, logged): a plain line ``hlik: STAGE (k/n,
+    T s)`` once a stage has run :data:`QUIET_FOR` seconds, then at most every :data:`EVERY`
+    seconds, so that a cold cache (a reachability map sampled, criteria learned) is not a silent
+    minute, while quick stages and errors print nothing more."""
+
+    QUIET_FOR, EVERY = 2.0, 10.0
+
+    def __init__(self) -> None:
+        self.tasks: dict[int, dict[str, Any]] = {}
+
+    def __enter__(self) -> _PlainProgress:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        return None
+
+    def add_task(self, description: str, total: float | None = None, **_: object) -> int:
+        self.tasks[len(self.tasks)] = {"description": description, "total": total, "completed": 0}
+        self._restart(len(self.tasks) - 1)
+        return len(self.tasks) - 1
+
+    def _restart(self, task: int) -> None:
+        now = time.monotonic()
+        self.tasks[task] |= {"since": now, "said": now - self.EVERY + self.QUIET_FOR}
+
+    def update(self, task: int, advance: float | None = None, **fields: Any) -> None:
+        state = self.tasks[task]
+        if "description" in fields and fields["description"] != state["description"]:
+            self._restart(task)
+        state.update({k: v for k, v in fields.items() if k in ("description", "total", "completed")})
+        if advance:
+            state["completed"] = (state["completed"] or 0) + advance
+        now = time.monotonic()
+        if now - state["said"] >= self.EVERY:
+            state["said"] = now
+            count = f"{int(state['completed'] or 0)}/{int(state['total'])}, " if state["total"] else ""
+            line = f"hlik: {state['description']} ({count}{now - state['since']:.0f} s)"
+            Console(stderr=True, soft_wrap=True, highlight=False, markup=False).print(line)
+
+
 def progress_bar(spinner: bool = False):
-    """A transient bar on stderr (none when stderr is no terminal): description, bar, k/n, time."""
+    """A transient bar on stderr: description, bar, k/n, time; plain lines for a long stage where
+    stderr is no terminal (:class:`_PlainProgress`)."""
+    if not sys.stderr.isatty():
+        return _PlainProgress()
     from rich.progress import (
         BarColumn,
         MofNCompleteColumn,
@@ -206,7 +251,6 @@ def progress_bar(spinner: bool = False):
         TimeElapsedColumn(),
         console=Console(stderr=True),
         transient=True,
-        disable=not sys.stderr.isatty(),
     )
 
 
