@@ -57,6 +57,9 @@ class ElbowsAhead(Term):
 
     def jacobian(self, state, sample):
         ahead, f, u, mid = self._plane(state)
+        active = (-self.allowance - ahead) > 0.0
+        if not active.any():  # the usual case: both elbows in front
+            return np.zeros((*ahead.shape, state.q.shape[-1]))
         jac = state.jac[:, :, :2, :3]  # (F, arm, site (shoulder, elbow), xyz, n)
         j_mid = 0.5 * (jac[:, 0, 0] + jac[:, 1, 0])  # (F, 3, n)
         du = np.cross(UP[None, :, None], jac[:, 1, 0] - jac[:, 0, 0], axis=1)  # z x dL, (F, 3, n)
@@ -66,5 +69,4 @@ class ElbowsAhead(Term):
         d_ahead = np.einsum("fi,fain->fan", f, jac[:, :, 1] - j_mid[:, None]) + np.einsum(
             "fai,fin->fan", rel, df
         )
-        active = (-self.allowance - ahead) > 0.0
         return np.where(active[..., None], -d_ahead, 0.0)
