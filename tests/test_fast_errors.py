@@ -85,6 +85,11 @@ def test_formats_are_recognised_by_content_without_their_extension(tmp_path):
         motion_format(amc)
     with pytest.raises(MotionFormatError, match="not a motion format hlik recognises"):
         motion_format(text)
+    named = tmp_path / "notes.xml"  # named as MMM, but not XML at all
+    named.write_text("a text file\n")
+    with pytest.raises(MotionFormatError, match="not XML") as err:
+        motion_format(named)
+    assert READS in str(err.value)
 
 
 def test_the_registry_names_each_built_in_criterion_by_its_class():

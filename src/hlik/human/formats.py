@@ -29,9 +29,11 @@ def motion_format(path: str | Path) -> str:
     path = Path(path)
     head = check_readable(path, lambda problem: MotionFormatError(path, problem), "a motion file", _SNIFF)
     known = _READERS.get(path.suffix.lower())
+    text = head.lstrip(b"\xef\xbb\xbf \t\r\n")
+    if known == "mmm" and text and not text.startswith(b"<"):
+        raise MotionFormatError(path, f"not XML (an MMM file begins with '<'); hlik reads {READS}")
     if known is not None:
         return known
-    text = head.lstrip(b"\xef\xbb\xbf \t\r\n")
     if text.startswith(b"<"):
         return "mmm"
     if text.upper().startswith(b"HIERARCHY"):
