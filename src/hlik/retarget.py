@@ -13,7 +13,7 @@ from hlik.human.motion import HumanMotion
 from hlik.problem.placement import Placement
 from hlik.problem.problem import Problem, build_problem
 from hlik.robot.model import Robot, tcp_poses
-from hlik.solvers import SOLVER_NAMES, Solver, get_solver
+from hlik.solvers import Solver, get_solver
 from hlik.solvers.base import Diagnostics, SolverResult
 from hlik.trajectory import Trajectory
 from hlik.util.errors import HlikError
@@ -39,9 +39,7 @@ def retarget(
         HlikError: unknown solver name, or joint angles of the wrong shape.
     """
     if isinstance(solver, str):
-        if solver not in SOLVER_NAMES:
-            raise HlikError(f"unknown solver {solver!r}; choose one of: {', '.join(SOLVER_NAMES)}")
-        solver = get_solver(solver)
+        solver = get_solver(solver)  # an unknown name: UnknownNameError, an HlikError
     criteria = tuple(getattr(solver, "criteria", ()))
     problem = build_problem(motion, robot, placement, learned, criteria)
     return trajectory_of(problem, solver(problem), getattr(solver, "name", type(solver).__name__))

@@ -175,7 +175,6 @@ def trajectory_and_robot(path: Path) -> tuple[Trajectory, Robot]:
         HlikError: the file cannot be read, its robot cannot be loaded (named as the file's), or
             its joints are not the robot's.
     """
-    check_trajectory_file(path)
     from hlik.robot.model import load_robot
     from hlik.trajectory import check_robot, load_trajectory
     from hlik.util.errors import RobotError

@@ -46,16 +46,13 @@ def export(
     over its speed, acceleration or effort limit)."""
     with one_line():
         check_trajectory_file(trajectory)
-        from hlik.export import WRITERS
+        from hlik.export import WRITERS, default_path
         from hlik.export import export as export_trajectory
 
         if fmt not in WRITERS:
             raise HlikError(f"unknown export format {fmt!r}; choose one of: {', '.join(WRITERS)}")
         suffix = WRITERS[fmt][1]
-        default = (
-            trajectory.with_suffix(suffix) if suffix else trajectory.with_name(f"{trajectory.stem}_lerobot")
-        )
-        path = out or default
+        path = out or default_path(trajectory, fmt)
         if suffix and path.suffix.lower() != suffix:
             raise HlikError(f"{path}: --format {fmt} writes {suffix} files; name the output so")
         if path.exists() and not force:

@@ -240,10 +240,9 @@ def _export(result: RunResult, npz: Path, fmt: str) -> None:
     """``hlik export NPZ --format FMT --force`` of the run just written (a run's default names are
     its own, so an export of an earlier run of the same name is replaced with it); a refusal is a
     warning, the run's own files stand, with the command that writes it anyway."""
-    from hlik.export import WRITERS, export
+    from hlik.export import default_path, export
 
-    suffix = WRITERS[fmt][1]
-    path = npz.with_suffix(suffix) if suffix else npz.with_name(f"{npz.stem}_lerobot")
+    path = default_path(npz, fmt)
     with one_line():  # a failed write (full disk) is an error
         try:
             written = export(result.trajectory, result.robot, path, fmt)

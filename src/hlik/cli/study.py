@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-import os
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
 
@@ -17,10 +16,11 @@ from hlik.cli.app import (
     console,
     one_line,
     progress_bar,
+    resolve_corpus,
     warn,
 )
 from hlik.util.errors import HlikError
-from hlik.util.paths import corpus_setting, demo_motion_path
+from hlik.util.paths import demo_motion_path, shared_takes
 
 if TYPE_CHECKING:
     from hlik.study.runner import StudyResult
@@ -97,7 +97,7 @@ def study(
         with progress_bar() as progress:
             task = progress.add_task("cells", total=n_cells)
             advance = lambda o: progress.update(task, advance=1, description=o.cell.file_name[:48])  # noqa: E731
-            corpus = corpus if corpus is not None else corpus_setting()[0]
+            corpus = resolve_corpus(corpus)[0]  # --corpus demo: the bundled demo
             result = run_study(files, names, listed, out, seconds, workers, address, advance, corpus)
     _report(result)
 
@@ -151,7 +151,4 @@ def _report(result: StudyResult) -> None:
 
 def _default_takes() -> Path:
     """The shared KIT takes beside the checkout (or under HLIK_DATA), else the bundled demo."""
-    data = os.environ.get("HLIK_DATA")
-    candidates = [Path(data) / "kit_bimanual"] if data else []
-    candidates.append(Path.cwd().parent / "shared" / "motion_data" / "kit_bimanual")
-    return next((c for c in candidates if c.is_dir()), demo_motion_path())
+    return shared_takes() or demo_motion_path()

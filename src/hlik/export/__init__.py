@@ -31,6 +31,13 @@ WRITERS: Mapping[str, tuple[Callable[[Trajectory, Robot, Path, str | None], None
 )
 
 
+def default_path(trajectory: Path, fmt: str) -> Path:
+    """Where ``hlik export`` (and ``hlik run --export``) writes ``fmt`` of the trajectory file
+    ``trajectory``: beside it, its name with the format's suffix, or ``NAME_lerobot`` for a folder."""
+    suffix = WRITERS[fmt][1]
+    return trajectory.with_suffix(suffix) if suffix else trajectory.with_name(f"{trajectory.stem}_{fmt}")
+
+
 def export(
     traj: Trajectory, robot: Robot, path: str | Path, fmt: str = "csv", allow_violations: bool = False
 ) -> Path:
@@ -55,4 +62,4 @@ def export(
     return path
 
 
-__all__ = ["WRITERS", "export", "first_violation"]
+__all__ = ["WRITERS", "default_path", "export", "first_violation"]

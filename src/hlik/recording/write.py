@@ -264,17 +264,13 @@ def _simulated(rec, robot: Robot, q: np.ndarray, times: np.ndarray) -> Track:
 
 
 def _simulated_curves(rec, traj: Trajectory, robot: Robot, q: np.ndarray) -> dict[str, Curve]:
-    """Each replayed TCP's distance from the commanded one (m), chunk by chunk."""
+    """Each replayed TCP's distance from the commanded one (m): (T, 2), small, computed once."""
+    deviation = np.linalg.norm(robot_state(robot, q).tcp - traj.tcp_pos, axis=-1)
     curves: dict[str, Curve] = {}
     for i, side in enumerate(SIDES):
         label = f"simulated {side} TCP off the commanded (m)"
-        entity = _curve(rec, f"/plots/fPOS/simulated_{side}", label, TARGET_COLORS[side])
-        curves[entity] = functools.partial(_deviation, robot, q, traj.tcp_pos[:, i], i)
+        curves[_curve(rec, f"/plots/fPOS/simulated_{side}", label, TARGET_COLORS[side])] = deviation[:, i]
     return curves
-
-
-def _deviation(robot: Robot, q: np.ndarray, commanded: np.ndarray, arm: int, rows: slice) -> np.ndarray:
-    return np.linalg.norm(robot_state(robot, q[rows]).tcp[:, arm] - commanded[rows], axis=-1)
 
 
 def _curves(

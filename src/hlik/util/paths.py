@@ -80,12 +80,20 @@ def user_config() -> Path:
     return Path(base).expanduser() / "hlik" / "config.toml"
 
 
-def shared_corpus() -> Path | None:
-    """The KIT bimanual takes beside a checkout, if there: ``$HLIK_DATA/kit_bimanual``, else
-    ``../shared/motion_data/kit_bimanual`` from the working folder."""
+def shared_takes() -> Path | None:
+    """The folder of KIT bimanual takes beside a checkout, if there: ``$HLIK_DATA/kit_bimanual``,
+    else ``../shared/motion_data/kit_bimanual`` from the working folder (the default of ``hlik
+    study`` and, holding takes, of the corpus)."""
     data = os.environ.get("HLIK_DATA")
-    folder = (Path(data) if data else Path.cwd().parent / "shared" / "motion_data") / "kit_bimanual"
-    return folder if folder.is_dir() and any(folder.glob("*.xml")) else None
+    candidates = [Path(data) / "kit_bimanual"] if data else []
+    candidates.append(Path.cwd().parent / "shared" / "motion_data" / "kit_bimanual")
+    return next((c for c in candidates if c.is_dir()), None)
+
+
+def shared_corpus() -> Path | None:
+    """:func:`shared_takes` where it holds MMM takes (``*.xml``)."""
+    folder = shared_takes()
+    return folder if folder is not None and any(folder.glob("*.xml")) else None
 
 
 def corpus_setting() -> tuple[Path | None, str]:
