@@ -241,3 +241,31 @@ def test_the_posture_measures_are_logged_for_the_robot_and_the_subject(run):
         for i, side in enumerate(("left", "right")):
             logged = _scalars(temporal[f"/plots/posture/{who}_{side}_elbow"])
             np.testing.assert_allclose(logged, body.elbow_front_share[:, i])
+
+
+def test_the_robot_carries_the_objects_its_hands_hold(run, cut_take, armar6):
+    # held: the robot's TCP pose times the object's pose in the target's frame; the others stay put
+    from dataclasses import replace
+
+    from hlik.recording.scene import _object_box, carried_pose, holding_hand
+
+    traj, _, _, static, temporal = run
+    knife = traj.motion.objects["true_knife_black"]
+    box = _object_box(knife, 100)
+    holder = holding_hand(traj, knife, box)
+    assert set(holder) <= {-1, 1} and (holder == 1).any()  # the right hand picks the knife up
+    frames = np.arange(traj.n_frames)
+    recorded = traj.placement.to_base(knife.position, knife.rotation)
+    on_target = replace(traj, tcp_pos=traj.targets.pos, tcp_rot=traj.targets.rot)
+    for got, want in zip(carried_pose(on_target, knife, holder, frames), recorded):
+        np.testing.assert_allclose(got, want, atol=1e-12)
+    shift = np.array([0.05, -0.02, 0.01])
+    moved = replace(on_target, tcp_pos=traj.targets.pos + shift)
+    pos, _ = carried_pose(moved, knife, holder, frames)
+    np.testing.assert_allclose(pos - recorded[0], np.where((holder == 1)[:, None], shift, 0.0), atol=1e-12)
+    # every object with a pose is drawn at the robot too, and a fixture (the sideboard) stays put
+    drawn = {e.rsplit("/", 1)[1] for e in static if e.startswith("/world/robot/objects/")}
+    assert drawn == {e.rsplit("/", 1)[1] for e in static if e.startswith("/world/objects/")}
+    board = traj.motion.objects["true_kitchen_sideboard"]
+    assert (holding_hand(traj, board, _object_box(board, 100)) == -1).all()
+    assert "/world/robot/objects/true_knife_black" in temporal

@@ -8,13 +8,23 @@ from collections.abc import Callable, Iterator, Mapping
 import mujoco
 import numpy as np
 import rerun as rr
+from scipy.ndimage import median_filter
 
 from hlik.human.motion import ObjectMotion
 from hlik.problem.placement import Placement
 from hlik.recording.columns import Columns, Track, _entity, _index, _pose_columns
 from hlik.recording.style import _FILL, SIDE_COLORS, SPACING
 from hlik.robot.model import COLLISION_GROUP, SIDES
+from hlik.trajectory import Trajectory
 from hlik.util.spatial import body_poses, xyzw
+
+# a hand target within 3 cm of an object's box holds it: the Cut take's hand on the cucumber
+# 0-4 mm, on the knife's handle 1.0-1.3 cm once picked up (6.5 cm while it lies on the table)
+HOLD_DISTANCE = 0.03  # m
+HOLD_SMOOTHING = 0.3  # s
+FIXTURE_SPAN = 0.02  # m
+OBJECT_COLOR = (160, 160, 160, 120)
+ObjectBox = tuple[np.ndarray, np.ndarray, np.ndarray]  # known (T,) bool, half sizes (3,), centre (3,)
 
 
 def _display_placement(placement: Placement, layout: str) -> Placement:
@@ -185,14 +195,12 @@ def _frames_track(rec, entity: str, pos: np.ndarray, rot: np.ndarray, times: np.
     return track
 
 
-def _object(rec, entity: str, obj: ObjectMotion, times: np.ndarray, chunk_frames: int) -> list[Track]:
-    """Log a scene object as a box around its markers (or a 5 cm cube) at ``/world/objects/<entity>``
-    and its name, ``true_`` dropped, 3 cm above the box's top at ``/world/labels/<entity>`` (a label
-    on the box itself sits on the hand holding it); the track of both, where the object's pose is
-    finite (none if it never is)."""
+def _object_box(obj: ObjectMotion, chunk_frames: int) -> ObjectBox | None:
+    """Where the object's pose is known (T,) bool, and the box drawn for it in its own frame:
+    half sizes and centre (3,), m, around its markers (or a 5 cm cube); None if it never is."""
     known = np.all(np.isfinite(obj.position), axis=1) & np.all(np.isfinite(obj.rotation), axis=(1, 2))
     if not known.any():
-        return []
+        return None
     half, center = np.full(3, 0.025), np.zeros(3)
     if obj.markers:
         local = _local_markers(obj, np.flatnonzero(known), chunk_frames)
@@ -200,10 +208,18 @@ def _object(rec, entity: str, obj: ObjectMotion, times: np.ndarray, chunk_frames
         if len(local):
             lo, hi = np.percentile(local, [2, 98], axis=0)
             half, center = np.maximum((hi - lo) / 2, 0.01), (hi + lo) / 2
-    box, label = f"/world/objects/{entity}", f"/world/labels/{entity}"
+    return known, half, center
+
+
+def _object(rec, entity: str, obj: ObjectMotion, times: np.ndarray, box: ObjectBox) -> list[Track]:
+    """Log a scene object as its box (:func:`_object_box`) at ``/world/objects/<entity>`` and its
+    name, ``true_`` dropped, 3 cm above the box's top at ``/world/labels/<entity>`` (a label on the
+    box itself sits on the hand holding it); the track of both, where the object's pose is known."""
+    known, half, center = box
+    box_entity, label = f"/world/objects/{entity}", f"/world/labels/{entity}"
     rec.log(
-        box,
-        rr.Boxes3D(half_sizes=[half], centers=[center], colors=[(160, 160, 160, 120)], fill_mode=_FILL),
+        box_entity,
+        rr.Boxes3D(half_sizes=[half], centers=[center], colors=[OBJECT_COLOR], fill_mode=_FILL),
         static=True,
     )
     rec.log(
@@ -224,11 +240,74 @@ def _object(rec, entity: str, obj: ObjectMotion, times: np.ndarray, chunk_frames
         if len(frames):
             index = [rr.TimeColumn("frame", sequence=frames), rr.TimeColumn("time", duration=times[frames])]
             pos, rot = obj.position[frames], obj.rotation[frames]
-            yield box, index, _pose_columns(pos, rot)
+            yield box_entity, index, _pose_columns(pos, rot)
             # the box's centre, raised by its half-height along the world's z (rotated box) + 3 cm
             top = np.abs(rot[:, 2, :]) @ half + 0.03
             above = pos + rot @ center + top[:, None] * [0.0, 0.0, 1.0]
             yield label, index, rr.Transform3D.columns(translation=above)
+
+    return [track]
+
+
+def holding_hand(traj: Trajectory, obj: ObjectMotion, box: ObjectBox) -> np.ndarray:
+    """(T,) which hand holds ``obj`` at each frame: 0 left, 1 right, -1 none. A hand holds it where
+    its target (the subject's hand) is within :data:`HOLD_DISTANCE` of the object's box
+    (:func:`_object_box`), the nearer hand where both are, decided per :data:`HOLD_SMOOTHING` (a
+    running median, so that a hand passing by does not pick it up); an object that never moves
+    more than :data:`FIXTURE_SPAN` (a board, the sideboard) is held by none, though a hand rests
+    on it."""
+    known, half, center = box
+    holder = np.full(traj.n_frames, -1)
+    if np.ptp(obj.position[known], axis=0).max() <= FIXTURE_SPAN:
+        return holder
+    pos, rot = traj.placement.to_base(obj.position, obj.rotation)
+    local = np.einsum("tji,tkj->tki", rot, traj.targets.pos - pos[:, None]) - center  # (T, 2, 3)
+    gap = np.linalg.norm(np.maximum(np.abs(local) - half, 0.0), axis=2)
+    gap = np.where(np.isfinite(gap), gap, np.inf)
+    holder = np.where(gap.min(axis=1) <= HOLD_DISTANCE, gap.argmin(axis=1), -1)
+    rate = (traj.n_frames - 1) / (traj.times[-1] - traj.times[0]) if traj.n_frames > 1 else 1.0
+    return median_filter(holder, size=int(round(HOLD_SMOOTHING * rate)) | 1, mode="nearest")
+
+
+def carried_pose(
+    traj: Trajectory, obj: ObjectMotion, holder: np.ndarray, frames: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """The object's pose at ``frames`` (F,) in the robot base frame as the robot would carry it:
+    where ``holder`` (T,) (:func:`holding_hand`) names a hand, the robot TCP's pose times the
+    object's pose in that hand's target frame; elsewhere the recorded pose. (F, 3) m, (F, 3, 3)."""
+    pos, rot = traj.placement.to_base(obj.position[frames], obj.rotation[frames])
+    side = holder[frames]
+    for i in range(len(SIDES)):
+        held = side == i
+        t = frames[held]
+        turn = traj.tcp_rot[t, i] @ np.swapaxes(traj.targets.rot[t, i], 1, 2)
+        pos[held] = traj.tcp_pos[t, i] + np.einsum("tij,tj->ti", turn, pos[held] - traj.targets.pos[t, i])
+        rot[held] = turn @ rot[held]
+    return pos, rot
+
+
+def _held_object(rec, entity: str, obj: ObjectMotion, traj: Trajectory, box: ObjectBox) -> list[Track]:
+    """The object as the robot would carry it, at ``/world/robot/objects/<entity>`` (the robot's
+    base frame: beside the robot in the side layout): moved with the robot TCP of the hand that
+    holds it (:func:`holding_hand`), its pose relative to that hand's target kept, so the box
+    sits where the robot's hand would take it; elsewhere where the recording puts it."""
+    known, half, center = box
+    path = f"/world/robot/objects/{entity}"
+    rec.log(
+        path,
+        rr.Boxes3D(half_sizes=[half], centers=[center], colors=[OBJECT_COLOR], fill_mode=_FILL),
+        static=True,
+    )
+    holder = holding_hand(traj, obj, box)
+
+    def track(rows: slice) -> Iterator[Columns]:
+        frames = rows.start + np.flatnonzero(known[rows])
+        if len(frames):
+            index = [
+                rr.TimeColumn("frame", sequence=frames),
+                rr.TimeColumn("time", duration=traj.times[frames]),
+            ]
+            yield path, index, _pose_columns(*carried_pose(traj, obj, holder, frames))
 
     return [track]
 

@@ -21,10 +21,12 @@ from hlik.recording.panel import summary
 from hlik.recording.scene import (
     _display_placement,
     _frames_track,
+    _held_object,
     _keypoints_track,
     _log_paths,
     _model,
     _object,
+    _object_box,
 )
 from hlik.recording.style import (
     CHUNK_FRAMES,
@@ -216,8 +218,10 @@ def _scene(
     _log_paths(rec, "/world/human/hand_paths", traj.placement.to_world(traj.targets.pos), SIDE_COLORS)
     if fit is not None:
         tracks.append(_keypoints_track(rec, "/world/human/keypoints", keypoint_markers(traj.motion), times))
-    for name, obj in traj.motion.objects.items():
-        tracks += _object(rec, _entity(name), obj, times, chunk_frames)
+    fitted = {name: _object_box(obj, chunk_frames) for name, obj in traj.motion.objects.items()}
+    boxes = {name: box for name, box in fitted.items() if box is not None}  # never known: not drawn
+    for name, box in boxes.items():
+        tracks += _object(rec, _entity(name), traj.motion.objects[name], times, box)
 
     # The robot base as drawn (the side layout shifts it beside the human; overlay shows it where
     # the placement put it) and the rule that placed it.
@@ -241,6 +245,8 @@ def _scene(
     tracks.append(
         _model(rec, "/world/robot/bodies", robot.model, lambda rows: traj.q[rows], times, alpha=255)
     )
+    for name, box in boxes.items():  # and as the robot would carry them
+        tracks += _held_object(rec, _entity(name), traj.motion.objects[name], traj, box)
     _log_paths(rec, "/world/robot/target_paths", traj.targets.pos, TARGET_COLORS)
     _log_paths(rec, "/world/robot/tcp_paths", traj.tcp_pos, SIDE_COLORS)
     for i, side in enumerate(SIDES):

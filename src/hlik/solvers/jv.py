@@ -167,8 +167,12 @@ def chan_dubey(q: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> tuple[flo
 
 def limit_weights(grad: np.ndarray, previous: np.ndarray) -> np.ndarray:
     """Chan & Dubey's diagonal W (Eq. 13), (n,): 1 + |dH/dq_i| where |dH/dq_i| did not fall since
-    the previous step (moving toward a limit), else 1. ``grad``, ``previous``: dH/dq (n,)."""
-    return np.where(np.abs(grad) >= np.abs(previous), 1.0 + np.abs(grad), 1.0)
+    the previous step (moving toward a limit), else 1. ``grad``, ``previous``: dH/dq (n,).
+
+    A joint that did not move keeps the weight of one moving toward its limit whatever the rounding
+    of |dH/dq| (a fall of 1e-16 turned its weight from 1 + |dH/dq| to 1 in one run and not the other).
+    """
+    return np.where(np.abs(grad) >= np.abs(previous) * (1.0 - 1e-9), 1.0 + np.abs(grad), 1.0)
 
 
 def weighted_least_norm(jac: np.ndarray, xdot: np.ndarray, weights: np.ndarray, damping: float) -> np.ndarray:
@@ -204,9 +208,12 @@ def clamped_least_norm(
 
 def _fraction_inside(q: np.ndarray, step: np.ndarray, box: JointBox) -> float:
     """The largest s in [0, 1] with ``q + s step`` inside ``box`` where ``q`` is (joints outside
-    already do not count)."""
+    already do not count). Components under :data:`AT_BOUND` are rounding (a null-space step's
+    1e-17 on a held joint) and do not count: pointed out of the box from a joint on its bound,
+    they would stop the whole step."""
     with np.errstate(divide="ignore", invalid="ignore"):
-        room = np.where(step > 0, (box.upper - q) / step, np.where(step < 0, (box.lower - q) / step, np.inf))
+        out, back = step > AT_BOUND, step < -AT_BOUND
+        room = np.where(out, (box.upper - q) / step, np.where(back, (box.lower - q) / step, np.inf))
     return min(max(float(np.min(room, initial=1.0)), 0.0), 1.0)
 
 
@@ -308,6 +315,7 @@ def criterion_terms(robot: Robot, settings: JVSettings, learned: Learned | None)
 
 
 ROTATIONAL = (fORI, fORI_off)  # the target terms in rad; the others are in m
+AT_BOUND = 1e-9  # rad: a joint this close to a bound of the frame's box is held there
 
 
 def evaluate_targets(
@@ -435,8 +443,10 @@ def step(
     task = clamped_least_norm(jac, xdot, weights, damping, q, box)
     grad = secondary(criteria, state, frame, jla, settings)
     # joints at a bound of the frame's box are held: the null space is that of the others, and the
-    # step is scaled (not clipped) into the box, since a clipped null-space step moves the targets
-    free = (q > box.lower) & (q < box.upper)
+    # step is scaled (not clipped) into the box, since a clipped null-space step moves the targets;
+    # within AT_BOUND counts as at it, so that rounding (a step scaled to end on the bound) does not
+    # decide which joints the null space may use (a take and its mirror image took different ones)
+    free = (q > box.lower + AT_BOUND) & (q < box.upper - AT_BOUND)
 
     null_step = partial(_null_step, q=q, free=free, grad=grad, box=box, settings=settings)
     null, null_bound = _bounded(null_step(jac, task), memory)
