@@ -160,6 +160,38 @@ def test_mcap_round_trip_through_the_ros2_reader(panda_qp, tmp_path):
     assert '"violation": null' in topics["/hlik/info"][0][1].data
 
 
+def test_mcap_reads_as_a_ros2_bag(panda_qp, tmp_path):
+    """rosbags (a second, independent reader of rosbag2 storage, with ROS 2 Humble's message
+    definitions) opens the file as a bag: the topics, types and counts, and every message decoded
+    with the values and times the trajectory holds."""
+    pytest.importorskip("rosbags", reason='pip install -e ".[test]"')
+    from rosbags.highlevel import AnyReader
+    from rosbags.typesys import Stores, get_typestore
+
+    robot, traj = panda_qp
+    path = export(traj, robot, tmp_path / "t.mcap", "mcap")
+    n, got = traj.n_frames, {}
+    with AnyReader([path], default_typestore=get_typestore(Stores.ROS2_HUMBLE)) as bag:
+        types = {c.topic: (c.msgtype, c.msgcount) for c in bag.connections}
+        for conn, stamp, raw in bag.messages():
+            got.setdefault(conn.topic, []).append((stamp, bag.deserialize(raw, conn.msgtype)))
+    assert types == {
+        "/hlik/info": ("std_msgs/msg/String", 1),
+        "/joint_trajectory": ("trajectory_msgs/msg/JointTrajectory", 1),
+        "/joint_states": ("sensor_msgs/msg/JointState", n),
+        "/tcp_target/left": ("geometry_msgs/msg/PoseStamped", n),
+        "/tcp_target/right": ("geometry_msgs/msg/PoseStamped", n),
+    }
+    states = got["/joint_states"]
+    assert [t for t, _ in states] == list(np.round((traj.times - traj.times[0]) * 1e9).astype(int))
+    assert all(list(m.name) == list(robot.joint_names) for _, m in states)
+    np.testing.assert_array_equal([m.position for _, m in states], traj.q)
+    whole = got["/joint_trajectory"][0][1]
+    np.testing.assert_array_equal([p.positions for p in whole.points], traj.q)
+    left = [[m.pose.position.x, m.pose.position.y, m.pose.position.z] for _, m in got["/tcp_target/left"]]
+    np.testing.assert_array_equal(left, traj.targets.pos[:, 0])
+
+
 def test_an_output_named_for_another_format_is_refused(tmp_path):
     runner = CliRunner()
     out = tmp_path / "qp.rrd"
