@@ -175,7 +175,7 @@ def test_blueprint_opens_on_these_cameras_with_a_robot_view(run, armar6):
     ):
         np.testing.assert_allclose(by_name[name][0], cam.position, atol=1e-5)
         np.testing.assert_allclose(by_name[name][1], cam.target, atol=1e-5)
-    assert {"left arm: joint angles", "right arm: joint angles", "result"} <= set(names.values())
+    assert {"left arm", "right arm", "result"} <= set(names.values())
     assert sum(n.startswith("scores: ") for n in names.values()) == 4  # the paper's clusters
     relative = "fPOS_off (m), optimised" in names.values()
     assert relative == (run[1].scenario == "relative")

@@ -136,7 +136,8 @@ def _joint_views(robot: Robot | None) -> rrb.Container | rrb.View:
         return _plot("/plots/joints", "joint angles")
     return rrb.Horizontal(
         *(
-            _plot("/plots/joints", f"{title}: joint angles", [f"/plots/joints/{_entity(j)}" for j in joints])
+            # short titles: three panels side by side (ARMAR-III) cut "left arm: joint angles" short
+            _plot("/plots/joints", title, [f"/plots/joints/{_entity(j)}" for j in joints])
             for title, joints in joint_groups(robot).items()
         )
     )
@@ -185,7 +186,7 @@ def _robot_points(traj: Trajectory, robot: Robot, rows: slice) -> np.ndarray:
     )
 
 
-def _framing(points: np.ndarray, facing: np.ndarray, fallback: np.ndarray, margin: float = 0.15) -> Camera:
+def _framing(points: np.ndarray, facing: np.ndarray, fallback: np.ndarray, margin: float = 0.05) -> Camera:
     """A camera looking back against ``facing`` (its horizontal part; ``fallback``'s if it has
     none) at the centre of the box around ``points`` (N, 3), from the nearest distance that puts
     every point, grown by ``margin`` m, inside the pyramid of half-angles atan(:data:`FRAME_TAN`)
