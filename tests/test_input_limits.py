@@ -97,3 +97,40 @@ def test_settings_have_upper_bounds(tmp_path, field, value, message):
     path.write_text(f"[qp]\n{field} = {value!r}\n".replace("e+300", "e300"))
     with pytest.raises(HlikError, match=field):
         load_stack(path).settings("qp")
+
+
+def test_a_trajectory_whose_header_claims_terabytes_is_one_line(tmp_path):
+    """hlik evaluate / export / replay read a trajectory .npz: its members' headers are checked
+    before any array is read (before, a 73 TiB allocation ended in a traceback)."""
+    from typer.testing import CliRunner
+
+    from hlik.cli import app
+
+    _claiming(tmp_path / "q.npy", (10**7, 10**6))
+    with zipfile.ZipFile(tmp_path / "t.npz", "w") as archive:
+        archive.write(tmp_path / "q.npy", "q.npy")
+    for command in ("evaluate", "export", "replay"):
+        result = CliRunner().invoke(app, [command, str(tmp_path / "t.npz")])
+        assert result.exit_code == 2, result.output
+        assert "array 'q': its header claims shape (10000000, 1000000)" in result.output
+        assert result.output.count("\n") == 1
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["q.npy", "t.npz"]  # nothing written
+
+
+@pytest.mark.parametrize(
+    ("table", "message"),
+    [
+        ("[qp.gamma]\nHJA_r = 1e300", r"\[qp.gamma\] HJA_r must be a finite number in \[0, 1e\+06\]"),
+        ("[gamma]\nHJA_r = 1e300", r"\[gamma\] HJA_r must be a finite number in \[0, 1e\+06\]"),
+        ("[qp.gamma]\nHJA_rr = 1", r"\[qp.gamma\]: unknown criteria HJA_rr \(did you mean 'HJA_r'\?\)"),
+        ("[qp.robot.armar6]\norientation_cost = 1e300", r"\[qp.robot.armar6\] orientation_cost must be"),
+    ],
+)
+def test_a_stack_names_the_table_of_a_bad_gamma_or_robot_weight(tmp_path, table, message):
+    """A gamma of 1e300 was accepted and failed every frame; a robot's table was named [qp]."""
+    path = tmp_path / "stack.toml"
+    path.write_text(table + "\n")
+    with pytest.raises(SettingsError, match=message):
+        load_stack(path)
+    with pytest.raises(SettingsError, match="gamma HJA_r must be a finite number in"):
+        QPSettings(gamma={"HJA_r": 1e300})

@@ -408,3 +408,35 @@ def test_a_study_joins_a_ray_cluster_with_token_authentication(tmp_path):
         )
     finally:
         subprocess.run([str(ray_cli), "stop", "--force"], env=env, capture_output=True, timeout=120)
+
+
+@pytest.mark.parametrize(
+    ("signum", "code", "how"), [("TERM", 143, "terminated"), ("INT", 130, "interrupted")]
+)
+def test_a_study_stopped_by_a_signal_says_what_it_kept_and_resumes(tmp_path, signum, code, how):
+    """In-process cells (no Ray): SIGTERM ended the study silently and Ctrl-C said "nothing
+    written" over the cells it had kept; now one line counts them, and the same command reuses them."""
+    import signal as signals
+    import subprocess
+    import sys
+    import time
+
+    args = [sys.executable, "-m", "hlik", "study", str(demo_motion_path()), "--robots", "dual_panda"]
+    args += ["--approaches", "quick", "--seconds", "1", "--workers", "1", "--out", str(tmp_path / "s")]
+    env = {**os.environ, "HLIK_CORPUS": "demo"}
+    study = subprocess.Popen(args, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 120
+    while not list((tmp_path / "s" / "cells").glob("*.parquet")) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert study.poll() is None, study.communicate()
+    study.send_signal(getattr(signals, f"SIG{signum}"))
+    _, err = study.communicate(timeout=60)
+    kept = len(list((tmp_path / "s" / "cells").glob("*.parquet")))
+    assert study.returncode == code, err
+    assert err.strip().splitlines()[-1].startswith(f"error: {how}: {kept} of ") and "resume" in err, err
+    assert "nothing written" not in err and "Traceback" not in err and kept >= 1
+    if signum == "INT":
+        return  # the resume is the same after either
+    again = subprocess.run(args, env=env, capture_output=True, text=True, timeout=300)
+    assert again.returncode == 0, again.stderr
+    assert f"({kept} reused, 0 failed)" in again.stdout

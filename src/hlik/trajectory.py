@@ -23,6 +23,7 @@ from hlik.problem.reference import HumanReference
 from hlik.problem.targets import HandTargets
 from hlik.robot.model import Robot
 from hlik.solvers.base import Diagnostics
+from hlik.util.arrayfile import array_shapes
 from hlik.util.atomic import atomic_path
 from hlik.util.errors import TrajectoryFormatError
 from hlik.util.files import check_readable
@@ -165,6 +166,12 @@ def _read_arrays(path: Path) -> dict[str, np.ndarray]:
     check_readable(
         path, lambda problem: TrajectoryFormatError(f"{path}: {problem}"), "a trajectory .npz file"
     )
+    try:  # shapes from the headers first: a header may claim any size, a member inflate to GBs
+        array_shapes(path)
+    except ValueError as e:
+        raise TrajectoryFormatError(f"{path}: not read: {e}") from None
+    except (OSError, EOFError, KeyError, zipfile.BadZipFile, zlib.error):
+        pass  # not an archive of arrays: np.load below says what it is not
     try:
         archive = np.load(path, allow_pickle=False)
     except (OSError, ValueError, EOFError, zipfile.BadZipFile):

@@ -11,10 +11,12 @@ from rich.table import Table
 from rich.text import Text
 
 from hlik.cli.app import (
+    INTERRUPTED,
     MOTION_FILES,
     CorpusOpt,
     console,
     one_line,
+    print_error,
     progress_bar,
     resolve_corpus,
     warn,
@@ -98,8 +100,31 @@ def study(
             task = progress.add_task("cells", total=n_cells)
             advance = lambda o: progress.update(task, advance=1, description=o.cell.file_name[:48])  # noqa: E731
             corpus = resolve_corpus(corpus)[0]  # --corpus demo: the bundled demo
-            result = run_study(files, names, listed, out, seconds, workers, address, advance, corpus)
+            try:
+                result = run_study(files, names, listed, out, seconds, workers, address, advance, corpus)
+            except (KeyboardInterrupt, SystemExit) as e:
+                _stopped(e, out, n_cells)
+                raise
     _report(result)
+
+
+TERMINATED = 128 + 15  # exit code of a command ended by SIGTERM (hlik.util.atomic.Termination)
+
+
+def _stopped(stop: BaseException, out: Path, n_cells: int) -> None:
+    """Say what a study stopped by Ctrl-C or SIGTERM kept: the finished cells (each written whole),
+    which the same command reuses; before, SIGTERM ended it silently and Ctrl-C said "nothing
+    written" over the kept cells."""
+    code = getattr(stop, "code", None)
+    if isinstance(stop, SystemExit) and code not in (TERMINATED, INTERRUPTED):
+        return
+    how = "terminated" if code == TERMINATED else "interrupted"
+    kept = len(list((out / "cells").glob("*.parquet"))) if (out / "cells").is_dir() else 0
+    print_error(
+        f"{how}: {kept} of {n_cells} cells kept in {out / 'cells'}; run the same command to resume "
+        "(no metric or report written)"
+    )
+    raise SystemExit(INTERRUPTED if how == "interrupted" else TERMINATED) from None
 
 
 def _takes(folder: Path) -> list[Path]:

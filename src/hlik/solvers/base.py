@@ -14,6 +14,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from hlik.problem.problem import Problem
+from hlik.solvers.bounds import MAX_COUNT, MAX_WEIGHT
 from hlik.util.errors import SettingsError
 
 
@@ -101,10 +102,6 @@ class ConfiguredSolver:
         return self.solve(problem, self.settings, self.progress)
 
 
-MAX_WEIGHT = 1e6  # any solver weight; the bundled stacks' largest is 30
-MAX_COUNT = 100_000  # iterations or evaluations per frame; the defaults are 20-150
-
-
 def check_settings(
     settings: object,
     *,
@@ -171,9 +168,10 @@ def _check_choices(settings: object, owner: str) -> None:
     if not isinstance(gamma, Mapping):
         raise SettingsError(f"{owner}.gamma must be a mapping of criterion name -> number, got {gamma!r}")
     for name, value in gamma.items():
-        if not (_is_real(value) and math.isfinite(value) and value >= 0):
+        if not (_is_real(value) and math.isfinite(value) and 0 <= value <= MAX_WEIGHT):
             shown = str(value) if _is_real(value) else repr(value)
-            raise SettingsError(f"{owner}.gamma {name} must be a finite number >= 0, got {shown}")
+            rule = f"a finite number in [0, {MAX_WEIGHT:g}]"  # a gamma of 1e300 failed every frame
+            raise SettingsError(f"{owner}.gamma {name} must be {rule}, got {shown}")
     margin, detect = getattr(settings, "collision_margin", 0.0), getattr(settings, "collision_detect", 1.0)
     if detect <= margin:  # both checked above: the damper acts between the two distances
         raise SettingsError(

@@ -19,6 +19,7 @@ from types import MappingProxyType
 
 from hlik.criteria import registry
 from hlik.robot.files import available_robots
+from hlik.solvers.bounds import MAX_WEIGHT
 from hlik.util.errors import SettingsError
 from hlik.util.paths import tasks_dir
 from hlik.util.tomlfile import read_toml, unknown_key
@@ -159,13 +160,13 @@ def _parse(raw: dict, path: Path) -> Stack:
         robots=MappingProxyType(robots),
     )
     for solver in SOLVER_TABLES:  # refuse bad values now, naming the file, not when a solver starts
-        try:
-            stack.settings(solver)
-            for robot in stack.robots.get(solver, {}):
+        owner = f"{settings_class(solver).__name__}."
+        for robot in (None, *stack.robots.get(solver, {})):
+            try:
                 stack.settings(solver, robot)
-        except SettingsError as e:
-            owner = f"{settings_class(solver).__name__}."
-            raise SettingsError(f"{path}: [{solver}] {str(e).removeprefix(owner)}") from None
+            except SettingsError as e:
+                table = solver if robot is None else f"{solver}.{ROBOT_TABLE}.{robot}"
+                raise SettingsError(f"{path}: [{table}] {str(e).removeprefix(owner)}") from None
     return stack
 
 
@@ -189,11 +190,12 @@ def _gamma(table: object, path: Path, where: str) -> Mapping[str, float]:
     if not isinstance(table, dict):
         raise SettingsError(f"{path}: [{where}] must be a table of criterion = number")
     for name in table:
-        check_criteria((name,), path)
+        check_criteria((name,), f"{path}: [{where}]")
     values = {name: _number(v, path, f"{where}.{name}") for name, v in table.items()}
     for name, v in values.items():
-        if not (math.isfinite(v) and v >= 0):
-            raise SettingsError(f"{path}: [{where}] {name} must be a finite number >= 0, got {v}")
+        if not (math.isfinite(v) and 0 <= v <= MAX_WEIGHT):
+            rule = f"a finite number in [0, {MAX_WEIGHT:g}]"
+            raise SettingsError(f"{path}: [{where}] {name} must be {rule}, got {v}")
     return MappingProxyType(values)
 
 
@@ -221,8 +223,10 @@ def check_criteria(criteria: tuple[str, ...], where: object) -> None:
     known = registry.human_likeness()
     unknown = [c for c in criteria if c not in known]
     if unknown:
+        close = difflib.get_close_matches(unknown[0], known, n=1)
+        hint = f" (did you mean {close[0]!r}?)" if close else ""
         raise SettingsError(
-            f"{where}: unknown criteria {', '.join(unknown)}; choose from: {', '.join(known)}"
+            f"{where}: unknown criteria {', '.join(unknown)}{hint}; choose from: {', '.join(known)}"
         )
 
 
