@@ -4,9 +4,10 @@ A reflection M = I - 2 n nᵀ of the base frame (n the unit normal of the sagitt
 left arm's first joint to the right's, horizontal) maps a rotation by θ about an axis a to one by
 -θ about M a. So a model is mirror-symmetric when each left arm joint has a right partner (the
 same place in ``[arms]``) at the reflected anchor with the axis ±M a, each extra (trunk) joint is
-its own partner, and the partners' ranges, speed, acceleration and effort limits are each other's
-under the sign: then q' = sign · q[source] poses the mirror image of the robot posed by q. Checked on
-the model (anchors and axes at q = 0) and by forward kinematics (the TCPs at random configurations).
+its own partner, and the partners' ranges, speed, acceleration and effort limits and home angles
+are each other's under the sign: then q' = sign · q[source] poses the mirror image of the robot
+posed by q. Checked on the model (anchors and axes at q = 0) and by forward kinematics (the TCPs
+at random configurations).
 
 Used by the mirror-symmetry property (a take and its mirror image retarget to mirror images) on the
 robots this holds for: ARMAR-6 and the G1; ARMAR-III's published ranges differ between its arms
@@ -94,6 +95,11 @@ def joint_mirror(robot: Robot, collision: bool = True, samples: int = 20, seed: 
         source[k], sign[k] = i, (-1.0 if cos > 0 else 1.0)
         _check_limits(robot, a, b, i, k, sign[k])
     mirror = JointMirror(source, sign, normal, point)
+    odd = np.flatnonzero(np.abs(mirror.apply(robot.home) - robot.home) > LIMIT_TOL)
+    if len(odd):  # the first frame starts from home: an asymmetric one seeds asymmetric postures
+        raise NotMirrorSymmetric(
+            f"{robot.name}: its home pose is not mirror-symmetric at {robot.joint_names[odd[0]]}"
+        )
     _check_tcps(robot, mirror, reflect, samples, seed)
     if collision:
         _check_collision_geoms(robot, mirror, seed)

@@ -383,8 +383,13 @@ def _null_step(
 
 
 def _bounded(null: np.ndarray, memory: Memory) -> tuple[np.ndarray, float]:
-    """``null`` within the null-space bound, halved whenever the null-space step reverses."""
-    null_bound = memory.null_bound * (0.5 if null @ memory.null < 0.0 else 1.0)
+    """``null`` within the null-space bound, halved whenever the null-space step reverses (turns
+    back by more than rounding: the sign of two rounding-sized steps' dot product halved the bound
+    in a take and not in its mirror image)."""
+    size, before = np.linalg.norm(null), np.linalg.norm(memory.null)
+    # steps of rounding's size (1e-16: a null space with nothing left to do) have no direction
+    reverses = min(size, before) > AT_BOUND and null @ memory.null < -1e-6 * size * before
+    null_bound = memory.null_bound * (0.5 if reverses else 1.0)
     return bound(null, null_bound), null_bound
 
 
