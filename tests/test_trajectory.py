@@ -172,3 +172,7 @@ def test_format_2_files_are_read_or_named_as_older(tmp_path, demo):
         TrajectoryFormatError, match="older hlik.trajectory/2 layout .*'base_method'.*run hlik run"
     ):
         load_trajectory(tmp_path / "older.npz")
+    arrays["format"] = np.array("hlik.trajectory/4")  # a newer hlik's: not "run hlik run again"
+    np.savez(tmp_path / "newer.npz", **arrays)
+    with pytest.raises(TrajectoryFormatError, match="hlik.trajectory/4 by a newer hlik.*update hlik"):
+        load_trajectory(tmp_path / "newer.npz")

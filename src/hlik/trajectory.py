@@ -110,6 +110,11 @@ def load_trajectory(path: str | Path) -> Trajectory:
                 "run hlik run again to rewrite it"
             )
         found = FORMAT
+    version = found.removeprefix("hlik.trajectory/")
+    if version.isdigit() and int(version) > int(FORMAT.rsplit("/", 1)[1]):
+        raise TrajectoryFormatError(
+            f"{path}: written in {found} by a newer hlik; this one reads {FORMAT}: update hlik to read it"
+        )
     if found.startswith("hlik.trajectory/") and found != FORMAT:
         raise TrajectoryFormatError(
             f"{path}: written in {found}, this hlik reads {FORMAT} (which adds the human reference and the "

@@ -7,6 +7,7 @@ CLI does before anything heavy loads) costs no import of MuJoCo, mink or NLopt.
 
 from __future__ import annotations
 
+import difflib
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from importlib import import_module
@@ -82,7 +83,9 @@ def check_solver(name: str) -> SolverSpec:
         UnknownNameError: no solver of that name, with the names there are.
     """
     if name not in SPECS:
-        raise UnknownNameError(f"unknown solver {name!r}; choose one of: {', '.join(SOLVER_NAMES)}")
+        close = difflib.get_close_matches(str(name), SOLVER_NAMES, n=1)
+        hint = f" (did you mean {close[0]!r}?)" if close else ""
+        raise UnknownNameError(f"unknown solver {name!r}{hint}; choose one of: {', '.join(SOLVER_NAMES)}")
     return SPECS[name]
 
 
