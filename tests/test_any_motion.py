@@ -263,8 +263,11 @@ def test_a_bvh_with_fewer_rows_than_frames_is_refused_at_once(tmp_path):
     path = tmp_path / "short.bvh"
     _bvh(path, np.zeros((10, 33)))
     path.write_text(path.read_text().replace("Frames: 10", "Frames: 12"))
-    with pytest.raises(MotionFormatError, match=r"Frames: 12 but 10 motion rows \(the file ends early\)"):
+    with pytest.raises(
+        MotionFormatError, match=r"Frames: 12 but 10 motion rows \(the file ends early\)"
+    ) as e:
         read_bvh(path)
+    assert str(e.value).count("short.bvh") == 1  # the file named once
     path.write_text(path.read_text().replace("Frames: 12", "Frames: 2000000"))
     with pytest.raises(MotionFormatError, match="2000000 frames, more than hlik's 1000000"):
         read_bvh(path)

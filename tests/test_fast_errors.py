@@ -40,6 +40,8 @@ MISTAKES = [
     (["export", "no_such_run.npz", "--format", "csv"], "no_such_run.npz: no such file"),
     (["replay", "no_such_run.npz"], "no_such_run.npz: no such file"),
     (["study", "--robots", "armar7"], "unknown robot 'armar7'"),
+    (["run", "--out", "x.txt"], "--out names the recording and must end in .rrd"),
+    (["run", "--out", "nope/x.rrd"], "output folder nope does not exist"),
 ]
 
 

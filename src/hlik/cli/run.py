@@ -178,6 +178,8 @@ def run(
         )
         if layout not in LAYOUTS:
             raise HlikError(f"unknown layout {layout!r}; choose one of: {', '.join(LAYOUTS)}")
+        if out is not None:  # a named recording is checked now; the default's name needs the robot
+            check_outputs(out, out.with_suffix(".npz"), _inputs(spec), create=False, force=force)
         spec.check()  # names, numbers and files before the heavy imports below
         from hlik.export import WRITERS
         from hlik.pipeline import run as run_pipeline

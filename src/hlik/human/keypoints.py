@@ -234,8 +234,9 @@ def _check_bvh_frames(path: Path, data: Path) -> None:
     timed = re.search(r"^\s*Frame Time:.*$", rest, re.M)
     rows = sum(1 for line in rest[timed.end() :].splitlines() if line.strip()) if timed else 0
     if rows < frames:
+        where = "" if data == path else f"{data.name}: "  # a .bvh read directly names itself once
         raise MotionFormatError(
-            path, f"{data.name}: Frames: {frames} but {rows} motion rows (the file ends early); fix Frames:"
+            path, f"{where}Frames: {frames} but {rows} motion rows (the file ends early); fix Frames:"
         )
 
 
