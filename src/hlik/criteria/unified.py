@@ -116,14 +116,10 @@ def load_metric(path: Path) -> Metric:
         table = raw.get(key)
         if not isinstance(table, dict):
             raise HlikError(f"{path}: needs a [{key}] table of criterion = number")
-        missing, unknown = set(names) - set(table), set(table) - set(names)
-        if missing or unknown:
-            what = (
-                f"missing {', '.join(sorted(missing))}"
-                if missing
-                else f"unknown {', '.join(sorted(unknown))}"
-            )
-            raise HlikError(f"{path}: [{key}] {what}")
+        if problem := unknown_key(table, names, f"[{key}]"):  # a misspelt one first: SYNN, not "missing SYN"
+            raise HlikError(f"{path}: {problem}")
+        if missing := set(names) - set(table):
+            raise HlikError(f"{path}: [{key}] missing {', '.join(sorted(missing))}")
         for k, v in table.items():
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v):
                 raise HlikError(f"{path}: {key}.{k} must be a number, not {v!r}")

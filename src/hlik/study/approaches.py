@@ -55,11 +55,8 @@ def load_approaches(path: str | Path = PAPER) -> tuple[Approach, ...]:
     """
     path = Path(__file__).with_name(f"{path}.toml") if str(path) in BUNDLED else Path(path)
     raw = read_toml(path, "approach", BUNDLED)
-    unknown = set(raw) - {"stacks", "correlation", "evaluation", "exclude"}
-    if unknown:
-        raise HlikError(
-            f"{path}: unknown table {sorted(unknown)[0]!r} (stacks, correlation, evaluation, exclude)"
-        )
+    if problem := unknown_key(raw, {"stacks", "correlation", "evaluation", "exclude"}, "the top level"):
+        raise HlikError(f"{path}: {problem}")
     exclude = raw.get("exclude", [])
     if not isinstance(exclude, list) or not all(isinstance(e, str) for e in exclude):
         raise HlikError(f'{path}: exclude must be a list of approach names or patterns, e.g. ["jv+MJE"]')

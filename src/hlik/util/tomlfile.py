@@ -67,5 +67,5 @@ def unknown_key(
 
 def did_you_mean(name: object, choices: Iterable[str]) -> str:
     """``" (did you mean 'x'?)"`` with the choice closest to ``name``, or ``""`` if none is close."""
-    close = difflib.get_close_matches(str(name), list(choices), n=1)
+    close = difflib.get_close_matches(str(name), list(choices), n=1, cutoff=0.5)  # 'xo' for 'x0': 0.5
     return f" (did you mean {close[0]!r}?)" if close else ""
