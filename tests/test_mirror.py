@@ -50,7 +50,7 @@ def test_mirrored_angles_pose_the_mirror_image(armar6, seed):
 
 
 def _mirror_pair(robot, take, solver: str, criteria=None, placement=None, **settings):
-    where = {"placement": placement, "span": (0.0, 1.5), "criteria": criteria}  # from the first frame
+    where = {"placement": placement, "span": (0.0, 1.0), "criteria": criteria}  # from the first frame
     spec = RunSpec(motion=take, robot=robot.reference, solver=solver, settings=settings, **where)
     motion = read_motion(spec, robot)
     return run(spec, robot=robot, motion=motion), run(spec, robot=robot, motion=motion.mirrored())
