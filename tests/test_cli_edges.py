@@ -326,6 +326,14 @@ ROBOT_FAULTS = {
         lambda t: t.replace("[mapping.left]\n", "[mapping.left]\nFoo = { a = 1.0 }\n"),
         "Foo",
     ),
+    "mapping misspelt key": (
+        lambda t: t.replace("ArmL1_Cla1 = { a = 0.0, b = 0.0 }", "ArmL1_Cla1 = { aa = 0.0, b = 0.0 }"),
+        "unknown key 'aa' in [mapping.left] ArmL1_Cla1 (did you mean 'a'?)",
+    ),
+    "mapping misspelt joint": (
+        lambda t: t.replace("ArmL1_Cla1 = { a = 0.0, b = 0.0 }", "ArmL1_Cla = { a = 0.0, b = 0.0 }"),
+        "not a joint of the model (did you mean 'ArmL1_Cla1'?)",
+    ),
     "velocity limits not a table": (
         lambda t: t.replace("[velocity_limits]", "velocity_limits = 2\n[vl]"),
         "velocity_limits",

@@ -427,19 +427,17 @@ def _mapping(path: Path, desc: dict, names: tuple[str, ...]) -> JointMapping:
     table = _table(path, desc, "mapping", required=False)
     human = human_model(1.0)
     mmm = [human.joint(i).name for i in range(human.njnt)]
-    for side in table:
-        if side not in SIDES:
-            raise RobotError(f"{path}: unknown table [mapping.{side}]; choose from: {', '.join(SIDES)}")
+    if problem := unknown_key(table, SIDES, "[mapping]"):
+        raise RobotError(f"{path}: {problem}")
     for side in SIDES:
         for joint, entry in _table(path, table, side, f"mapping.{side}", required=False).items():
             where = f"[mapping.{side}] {joint}"
             if joint not in names:
-                raise RobotError(f"{path}: {where}: not a joint of the model")
+                raise RobotError(f"{path}: {where}: not a joint of the model{did_you_mean(joint, names)}")
             if not isinstance(entry, dict):
                 raise RobotError(f"{path}: {where} must be a table {{ mmm = ..., a = ..., b = ... }}")
-            extra = sorted(set(entry) - {"mmm", "a", "b", "offset"})
-            if extra:
-                raise RobotError(f"{path}: {where}: unknown key {extra[0]!r}; choose from: mmm, a, b, offset")
+            if problem := unknown_key(entry, ("mmm", "a", "b", "offset"), where):
+                raise RobotError(f"{path}: {problem}")
             if "mmm" in entry and not isinstance(entry["mmm"], str):
                 raise RobotError(f"{path}: {where} mmm must be an MMM joint name, got {entry['mmm']!r}")
             _check_mmm(path, entry.get("mmm"), f"{where} mmm", mmm)
