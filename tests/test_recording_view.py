@@ -269,3 +269,11 @@ def test_the_robot_carries_the_objects_its_hands_hold(run, cut_take, armar6):
     board = traj.motion.objects["true_kitchen_sideboard"]
     assert (holding_hand(traj, board, _object_box(board, 100)) == -1).all()
     assert "/world/robot/objects/true_knife_black" in temporal
+
+
+def test_one_left_right_label_pair_per_figure(run):
+    # three labelled pairs (hand paths, target paths, TCP paths) piled up on the hands in side views
+    _, _, _, static, _ = run
+    assert static["/world/robot/target_paths"]["LineStrips3D:show_labels"] == [False]
+    for entity in ("/world/human/hand_paths", "/world/robot/tcp_paths"):
+        assert static[entity]["LineStrips3D:show_labels"] == [True]

@@ -152,8 +152,11 @@ _ARCHETYPES = {
 }
 
 
-def _log_paths(rec, entity: str, pos: np.ndarray, colors: Mapping[str, tuple]) -> None:
-    """Both arms' paths (T, 2, 3) as two static line strips."""
+def _log_paths(
+    rec, entity: str, pos: np.ndarray, colors: Mapping[str, tuple], show_labels: bool = True
+) -> None:
+    """Both arms' paths (T, 2, 3) as two static line strips, labelled ``left``/``right`` (drawn, or
+    on hover only: three labelled pairs piled up on the robot's hands in side views)."""
     rec.log(
         entity,
         rr.LineStrips3D(
@@ -161,6 +164,7 @@ def _log_paths(rec, entity: str, pos: np.ndarray, colors: Mapping[str, tuple]) -
             colors=[colors[s] for s in SIDES],
             radii=0.003,
             labels=list(SIDES),
+            show_labels=show_labels,
         ),
         static=True,
     )

@@ -247,7 +247,7 @@ def _scene(
     )
     for name, box in boxes.items():  # and as the robot would carry them
         tracks += _held_object(rec, _entity(name), traj.motion.objects[name], traj, box)
-    _log_paths(rec, "/world/robot/target_paths", traj.targets.pos, TARGET_COLORS)
+    _log_paths(rec, "/world/robot/target_paths", traj.targets.pos, TARGET_COLORS, show_labels=False)
     _log_paths(rec, "/world/robot/tcp_paths", traj.tcp_pos, SIDE_COLORS)
     for i, side in enumerate(SIDES):
         tracks.append(
