@@ -366,24 +366,12 @@ def test_a_local_ray_that_does_not_start_falls_back_in_one_line(tmp_path, monkey
 def test_a_ray_study_stopped_by_a_signal_leaves_no_ray_process(tmp_path, signum, code):
     """SIGTERM ends the study as Ctrl-C does (not Ray's C++ dump, exit -6), and after any of the
     three no process of its local Ray is left (SIGKILL: study/reaper.py ends them)."""
-    import signal as signals
-    import subprocess
-    import sys
     import time
 
     pytest.importorskip("ray")
     before = _ray_processes()
-    args = [sys.executable, "-m", "hlik", "study", str(demo_motion_path()), "--robots", "dual_panda"]
-    args += ["--approaches", "quick", "--seconds", "4", "--workers", "2", "--out", str(tmp_path / "s")]
-    env = {**os.environ, "HLIK_CORPUS": "demo"}
-    study = subprocess.Popen(args, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    deadline = time.monotonic() + 120
-    while not list((tmp_path / "s" / "cells").glob("*.parquet")) and time.monotonic() < deadline:
-        time.sleep(0.5)  # Ray up and the first cell written
-    assert study.poll() is None, study.communicate()
-    study.send_signal(getattr(signals, f"SIG{signum}"))
-    out, err = study.communicate(timeout=60)
-    assert study.returncode == code, err
+    _, err, returncode = _stopped_study(tmp_path / "s", signum, seconds=4, workers=2)  # Ray up first
+    assert returncode == code, err
     assert "SIGTERM received" not in err and "Traceback" not in err, err
     time.sleep(5)  # the reaper's SIGTERM, then SIGKILL after 2 s
     assert _ray_processes() <= before
@@ -422,23 +410,9 @@ def test_a_study_joins_a_ray_cluster_with_token_authentication(tmp_path):
 def test_a_study_stopped_by_a_signal_says_what_it_kept_and_resumes(tmp_path, signum, code, how):
     """In-process cells (no Ray): SIGTERM ended the study silently and Ctrl-C said "nothing
     written" over the cells it had kept; now one line counts them, and the same command reuses them."""
-    import signal as signals
-    import subprocess
-    import sys
-    import time
-
-    args = [sys.executable, "-m", "hlik", "study", str(demo_motion_path()), "--robots", "dual_panda"]
-    args += ["--approaches", "quick", "--seconds", "0.5", "--workers", "1", "--out", str(tmp_path / "s")]
-    env = {**os.environ, "HLIK_CORPUS": "demo"}
-    study = subprocess.Popen(args, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    deadline = time.monotonic() + 120
-    while not list((tmp_path / "s" / "cells").glob("*.parquet")) and time.monotonic() < deadline:
-        time.sleep(0.1)
-    assert study.poll() is None, study.communicate()
-    study.send_signal(getattr(signals, f"SIG{signum}"))
-    _, err = study.communicate(timeout=60)
+    _, err, returncode = _stopped_study(tmp_path / "s", signum, seconds=0.5, workers=1)
     kept = len(list((tmp_path / "s" / "cells").glob("*.parquet")))
-    assert study.returncode == code, err
+    assert returncode == code, err
     assert err.strip().splitlines()[-1].startswith(f"error: {how}: {kept} of ") and "resume" in err, err
     assert "nothing written" not in err and "Traceback" not in err and kept >= 1
     if signum == "INT":
@@ -447,3 +421,24 @@ def test_a_study_stopped_by_a_signal_says_what_it_kept_and_resumes(tmp_path, sig
     cells = plan([demo_motion_path()], ["dual_panda"], load_approaches("quick"), 0.5)
     outcomes = run_cells(cells, tmp_path / "s" / "cells", workers=1)
     assert sum(o.reused for o in outcomes) == kept and not any(o.error for o in outcomes)
+
+
+def _stopped_study(out: Path, signum: str, seconds: float, workers: int) -> tuple[str, str, int]:
+    """``hlik study`` of the demo (2-Panda, the quick approaches) in a subprocess, sent SIG<signum>
+    once its first cell is written: its stdout, stderr and exit code."""
+    import signal as signals
+    import subprocess
+    import sys
+    import time
+
+    args = [sys.executable, "-m", "hlik", "study", str(demo_motion_path()), "--robots", "dual_panda"]
+    args += ["--approaches", "quick", "--seconds", str(seconds), "--workers", str(workers), "--out", str(out)]
+    env = {**os.environ, "HLIK_CORPUS": "demo"}
+    study = subprocess.Popen(args, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 120
+    while not list((out / "cells").glob("*.parquet")) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert study.poll() is None, study.communicate()
+    study.send_signal(getattr(signals, f"SIG{signum}"))
+    stdout, stderr = study.communicate(timeout=60)
+    return stdout, stderr, study.returncode
