@@ -124,7 +124,7 @@ def _stopped(stop: BaseException, out: Path, n_cells: int) -> None:
         f"{how}: {kept} of {n_cells} cells kept in {out / 'cells'}; run the same command to resume "
         "(no metric or report written)"
     )
-    raise SystemExit(INTERRUPTED if how == "interrupted" else TERMINATED) from None
+    raise SystemExit(TERMINATED if code == TERMINATED else INTERRUPTED) from None
 
 
 def _takes(folder: Path) -> list[Path]:

@@ -269,8 +269,8 @@ def holding_hand(traj: Trajectory, obj: ObjectMotion, box: ObjectBox) -> np.ndar
     gap = np.linalg.norm(np.maximum(np.abs(local) - half, 0.0), axis=2)
     gap = np.where(np.isfinite(gap), gap, np.inf)
     holder = np.where(gap.min(axis=1) <= HOLD_DISTANCE, gap.argmin(axis=1), -1)
-    rate = (traj.n_frames - 1) / (traj.times[-1] - traj.times[0]) if traj.n_frames > 1 else 1.0
-    return median_filter(holder, size=int(round(HOLD_SMOOTHING * rate)) | 1, mode="nearest")
+    width = int(round(HOLD_SMOOTHING * traj.motion.rate)) if traj.n_frames > 1 else 1
+    return median_filter(holder, size=width | 1, mode="nearest")
 
 
 def carried_pose(

@@ -23,6 +23,7 @@ import mujoco
 import numpy as np
 
 from hlik.robot.model import COLLISION_GROUP, Robot, tcp_poses
+from hlik.robot.reachability import UNLIMITED_RANGE
 from hlik.util.errors import HlikError
 
 #: Tolerances of the check: anchors and TCPs, m; axes (|cos|), limits, rad or the limit's unit.
@@ -82,14 +83,13 @@ def joint_mirror(robot: Robot, collision: bool = True, samples: int = 20, seed: 
     normal[2] = 0.0
     normal /= np.linalg.norm(normal)
     point = (anchor[left[0]] + anchor[right[0]]) / 2
-    mirror = JointMirror(np.arange(robot.dof), np.ones(robot.dof), normal, point)
     reflect = np.eye(3) - 2.0 * np.outer(normal, normal)
     partners = [*zip(left, right), *zip(right, left), *((e, e) for e in robot.extra_joints)]
-    source, sign = mirror.source.copy(), mirror.sign.copy()
+    source, sign = np.arange(robot.dof), np.ones(robot.dof)
     for a, b in partners:
         i, k = int(robot.index(a)), int(robot.index(b))
         cos = float(axis[b] @ (reflect @ axis[a]))
-        moved = np.linalg.norm(mirror.reflect(anchor[a]) - anchor[b])
+        moved = np.linalg.norm(point + (anchor[a] - point) @ reflect - anchor[b])
         if moved > POSITION_TOL or abs(abs(cos) - 1) > AXIS_TOL:
             raise NotMirrorSymmetric(f"{robot.name}: joint {b} is not the mirror image of {a} (place, axis)")
         source[k], sign[k] = i, (-1.0 if cos > 0 else 1.0)
@@ -104,6 +104,13 @@ def joint_mirror(robot: Robot, collision: bool = True, samples: int = 20, seed: 
     if collision:
         _check_collision_geoms(robot, mirror, seed)
     return mirror
+
+
+def _configurations(robot: Robot, n: int, seed: int) -> np.ndarray:
+    """(n, dof) joint angles drawn uniformly within the ranges (unlimited joints within ±π), rad."""
+    lo = np.where(np.isfinite(robot.lower), robot.lower, -UNLIMITED_RANGE)
+    hi = np.where(np.isfinite(robot.upper), robot.upper, UNLIMITED_RANGE)
+    return np.random.default_rng(seed).uniform(lo, hi, (n, robot.dof))
 
 
 def _check_limits(robot: Robot, a: str, b: str, i: int, k: int, sign: float) -> None:
@@ -121,11 +128,8 @@ def _check_limits(robot: Robot, a: str, b: str, i: int, k: int, sign: float) -> 
 
 
 def _check_tcps(robot: Robot, mirror: JointMirror, reflect: np.ndarray, samples: int, seed: int) -> None:
-    lo = np.where(np.isfinite(robot.lower), robot.lower, -np.pi)
-    hi = np.where(np.isfinite(robot.upper), robot.upper, np.pi)
-    rng = np.random.default_rng(seed)
     frame = None  # the constant turn between a TCP frame and its partner's reflected frame
-    for q in rng.uniform(lo, hi, (samples, robot.dof)):
+    for q in _configurations(robot, samples, seed):
         (pos,), (rot,) = tcp_poses(robot, q[None])
         (pos_m,), (rot_m,) = tcp_poses(robot, mirror.apply(q)[None])
         if np.abs(mirror.reflect(pos[::-1]) - pos_m).max() > POSITION_TOL:
@@ -140,9 +144,7 @@ def _check_collision_geoms(robot: Robot, mirror: JointMirror, seed: int) -> None
     model, data = robot.model, mujoco.MjData(robot.model)
     colliding = (model.geom_contype | model.geom_conaffinity) > 0
     geoms = np.flatnonzero((model.geom_group == COLLISION_GROUP) & colliding)
-    lo = np.where(np.isfinite(robot.lower), robot.lower, -np.pi)
-    hi = np.where(np.isfinite(robot.upper), robot.upper, np.pi)
-    q = np.random.default_rng(seed).uniform(lo, hi)
+    (q,) = _configurations(robot, 1, seed)
     centres = []
     for pose in (q, mirror.apply(q)):
         data.qpos[: robot.dof] = pose

@@ -7,7 +7,6 @@ CLI does before anything heavy loads) costs no import of MuJoCo, mink or NLopt.
 
 from __future__ import annotations
 
-import difflib
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from importlib import import_module
@@ -15,6 +14,7 @@ from types import MappingProxyType
 from typing import TYPE_CHECKING
 
 from hlik.util.errors import UnknownNameError
+from hlik.util.tomlfile import did_you_mean
 
 if TYPE_CHECKING:
     from hlik.solvers.base import Solver
@@ -83,8 +83,7 @@ def check_solver(name: str) -> SolverSpec:
         UnknownNameError: no solver of that name, with the names there are.
     """
     if name not in SPECS:
-        close = difflib.get_close_matches(str(name), SOLVER_NAMES, n=1)
-        hint = f" (did you mean {close[0]!r}?)" if close else ""
+        hint = did_you_mean(name, SOLVER_NAMES)
         raise UnknownNameError(f"unknown solver {name!r}{hint}; choose one of: {', '.join(SOLVER_NAMES)}")
     return SPECS[name]
 

@@ -22,7 +22,7 @@ from hlik.robot.files import available_robots
 from hlik.solvers.bounds import MAX_WEIGHT
 from hlik.util.errors import SettingsError
 from hlik.util.paths import tasks_dir
-from hlik.util.tomlfile import read_toml, unknown_key
+from hlik.util.tomlfile import did_you_mean, read_toml, unknown_key
 
 SCENARIOS = ("pose", "relative")
 SOLVER_TABLES = ("qp", "jv", "slsqp", "mink")
@@ -223,10 +223,9 @@ def check_criteria(criteria: tuple[str, ...], where: object) -> None:
     known = registry.human_likeness()
     unknown = [c for c in criteria if c not in known]
     if unknown:
-        close = difflib.get_close_matches(unknown[0], known, n=1)
-        hint = f" (did you mean {close[0]!r}?)" if close else ""
         raise SettingsError(
-            f"{where}: unknown criteria {', '.join(unknown)}{hint}; choose from: {', '.join(known)}"
+            f"{where}: unknown criteria {', '.join(unknown)}{did_you_mean(unknown[0], known)}; "
+            f"choose from: {', '.join(known)}"
         )
 
 
