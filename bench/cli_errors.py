@@ -34,6 +34,7 @@ MISTAKES = {
     "export, missing trajectory": ["export", "no_such_run.npz", "--format", "csv"],
     "replay, missing trajectory": ["replay", "no_such_run.npz"],
     "study, unknown robot": ["study", "--robots", "armar7"],
+    "bad stack-file value": ["run", "--stack", "bad_stack.toml"],  # written into the working folder
 }
 HEAVY = ("numpy", "mujoco", "scipy", "rerun")
 
@@ -73,6 +74,7 @@ def main() -> None:
     parser.add_argument("--repeat", type=int, default=5)
     opts = parser.parse_args()
     with tempfile.TemporaryDirectory() as cwd:  # nothing to find or write in the working folder
+        (Path(cwd) / "bad_stack.toml").write_text("[qp.gamma]\nHJA_r = 1e300\n")
         floor = statistics.median(_floor(cwd) for _ in range(opts.repeat))
         print(f'floor (python -c "import hlik.cli"): {floor:.2f} s, median of {opts.repeat}')
         print(f"{'mistake':28s} {'median s':>8s} {'/floor':>6s} exit  heavy imports  message")

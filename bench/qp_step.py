@@ -29,8 +29,8 @@ import numpy as np
 import hlik
 from hlik.criteria.learned import learn
 from hlik.problem.problem import build_problem
-from hlik.solvers.limits import STOP_MARGIN
 from hlik.solvers.qp import QPSettings, solve
+from hlik.solvers.settings import STOP_MARGIN
 from hlik.util.paths import demo_motion_path
 
 REPEATS = 3

@@ -58,6 +58,38 @@ def test_a_mistake_is_answered_before_any_heavy_import(tmp_path, args, message):
     assert not any(tmp_path.iterdir()), "nothing is written"
 
 
+
+STACK_VALUES = [
+    ("[qp]\nvelocity_cost = -1\n", "[qp] velocity_cost must be a finite number >= 0, got -1"),
+    ("[qp.gamma]\nHJA_r = 1e300\n", "HJA_r must be a finite number in [0, 1e+06], got 1e+300"),
+    ('[slsqp]\ngradients = "fdd"\n', "[slsqp] gradients must be 'analytic' or 'fd'"),
+    ("[jv]\nk = 1.0\n", "[jv] k must be a finite number <= 0, got 1.0"),
+    ('[qp]\nsolver = "no_such_qp"\n', "[qp] solver 'no_such_qp' is not an installed QP solver"),
+]
+
+
+@pytest.mark.parametrize(("table", "message"), STACK_VALUES, ids=[m for _, m in STACK_VALUES])
+def test_a_bad_stack_file_value_is_answered_before_any_heavy_import(tmp_path, table, message):
+    """The settings classes live apart from the solvers (``solvers/settings.py``), so checking a
+    stack file's values loads none of them; only another QP backend's name asks qpsolvers."""
+    stack, work = tmp_path / "stack.toml", tmp_path / "work"
+    stack.write_text(table)
+    work.mkdir()
+    done = subprocess.run(
+        [sys.executable, "-c", PROBE, "run", "--stack", str(stack)],
+        cwd=work,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    heavy, _, code = done.stdout.strip().splitlines()[-1].partition("|")
+    err = done.stderr.strip()
+    assert code == "2", (done.stdout, err)
+    assert len(err.splitlines()) == 1 and f"{stack}:" in err and message in err, err
+    if "solver" not in table:
+        assert heavy == "", f"imported {heavy} before the error"
+    assert not any(work.iterdir()), "nothing is written"
+
 @pytest.mark.parametrize(
     ("relative", "kind"),
     [

@@ -19,8 +19,9 @@ from hlik.problem.problem import build_problem
 from hlik.retarget import trajectory_of
 from hlik.robot.model import SIDES
 from hlik.solvers import jv, qp, slsqp
-from hlik.solvers.limits import LimitSettings, MotionLimits, braking_speed
+from hlik.solvers.limits import MotionLimits, braking_speed
 from hlik.solvers.mink_ik import MinkSolver
+from hlik.solvers.settings import LimitSettings
 
 
 def _mink_solve(problem, settings=None):

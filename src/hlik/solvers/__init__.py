@@ -9,7 +9,9 @@
 - ``mink``: the QP's stack solved by mink, with a stack file's own mink tasks and limits
   (:mod:`~hlik.solvers.mink_stack`).
 
-Beside them: :mod:`~hlik.solvers.mink_tasks` (criteria as mink tasks and limits),
+Beside them: :mod:`~hlik.solvers.settings` (what each solver is told, checked without loading
+a solver), :mod:`~hlik.solvers.mink_tasks` (criteria as mink tasks and limits),
+:mod:`~hlik.solvers.mink_specs` (a stack file's own mink tasks and limits),
 :mod:`~hlik.solvers.mink_ik` (a solver from any mink stack), :mod:`~hlik.solvers.stack_file`
 (``tasks/*.toml``), :mod:`~hlik.solvers.frames` (the frame loop they share),
 :mod:`~hlik.solvers.gradients` (a term's cost and gradient of one sample, for JV and SLSQP).

@@ -3,10 +3,7 @@ diagnostics out. Every solver (JM, JV, QP, SLSQP, a mink stack) is a :class:`Sol
 
 from __future__ import annotations
 
-import dataclasses
-import math
-import numbers
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Any, Protocol
@@ -14,8 +11,6 @@ from typing import Any, Protocol
 import numpy as np
 
 from hlik.problem.problem import Problem
-from hlik.solvers.bounds import MAX_COUNT, MAX_WEIGHT
-from hlik.util.errors import SettingsError
 
 
 @dataclass(frozen=True, eq=False)
@@ -100,84 +95,3 @@ class ConfiguredSolver:
 
     def __call__(self, problem: Problem) -> SolverResult:
         return self.solve(problem, self.settings, self.progress)
-
-
-def check_settings(
-    settings: object,
-    *,
-    at_least_zero: Sequence[str] = (),
-    positive: Sequence[str] = (),
-    at_most_zero: Sequence[str] = (),
-    fractions: Sequence[str] = (),
-    counts: Sequence[str] = (),
-) -> None:
-    """Check a solver's settings dataclass in its ``__post_init__``, so that the Python API refuses
-    what a stack file would: every listed field a finite number ``>= 0`` (``at_least_zero``),
-    ``> 0`` (``positive``), ``<= 0`` (``at_most_zero``), in (0, 1] (``fractions``) or a whole
-    number in [1, :data:`MAX_COUNT`] (``counts``); the ``scenario``, the ``gamma`` table (criterion
-    -> finite number ``>= 0``) and, where present, ``collision_detect > collision_margin``. Every
-    weight (a field named ``<what>_cost``) is in [0, :data:`MAX_WEIGHT`], ``collision_margin``
-    ``>= 0`` and ``collision_detect > 0`` without being listed.
-
-    Raises:
-        SettingsError: ``"<Class>.<field> must be ..., got <value>"`` for the first bad field
-            (:mod:`hlik.solvers.stack_file` turns it into ``"<file>: [<solver>] <field> ..."``).
-    """
-    owner = type(settings).__name__
-    weights = tuple(f.name for f in dataclasses.fields(settings) if f.name.endswith("_cost"))  # type: ignore[arg-type]
-    at_least_zero = (*weights, *at_least_zero)
-    if hasattr(settings, "collision_margin"):  # SolverSettings
-        at_least_zero, positive = (*at_least_zero, "collision_margin"), (*positive, "collision_detect")
-    if hasattr(settings, "stop_margin"):  # every solver's LimitSettings
-        at_least_zero, fractions = (*at_least_zero, "stop_margin"), (*fractions, "torque_fraction")
-
-    def fail(key: str, rule: str) -> None:
-        value = getattr(settings, key)
-        shown = str(value) if _is_real(value) else repr(value)
-        raise SettingsError(f"{owner}.{key} must be {rule}, got {shown}")
-
-    rules = (
-        (at_least_zero, "a finite number >= 0", lambda v: v >= 0),
-        (positive, "a finite number > 0", lambda v: v > 0),
-        (at_most_zero, "a finite number <= 0", lambda v: v <= 0),
-        (fractions, "a number in (0, 1]", lambda v: 0 < v <= 1),
-    )
-    for keys, rule, holds in rules:
-        for key in keys:
-            value = getattr(settings, key)
-            if not (_is_real(value) and math.isfinite(value) and holds(value)):
-                fail(key, rule)
-    for key in weights:  # a weight of 1e300 overflows the objective's squares
-        if getattr(settings, key) > MAX_WEIGHT:
-            fail(key, f"a finite number in [0, {MAX_WEIGHT:g}]")
-    for key in counts:
-        value = getattr(settings, key)
-        integral = isinstance(value, numbers.Integral) and not isinstance(value, bool)
-        if not (integral and 1 <= int(value) <= MAX_COUNT):
-            fail(key, f"a whole number in [1, {MAX_COUNT}]")
-    _check_choices(settings, owner)
-
-
-def _check_choices(settings: object, owner: str) -> None:
-    """The parts of :func:`check_settings` that are not one number: scenario, gamma table and the
-    collision distances' order."""
-    scenario = getattr(settings, "scenario", "pose")
-    if scenario not in ("pose", "relative"):
-        raise SettingsError(f"{owner}.scenario must be 'pose' or 'relative', got {scenario!r}")
-    gamma = getattr(settings, "gamma", {})
-    if not isinstance(gamma, Mapping):
-        raise SettingsError(f"{owner}.gamma must be a mapping of criterion name -> number, got {gamma!r}")
-    for name, value in gamma.items():
-        if not (_is_real(value) and math.isfinite(value) and 0 <= value <= MAX_WEIGHT):
-            shown = str(value) if _is_real(value) else repr(value)
-            rule = f"a finite number in [0, {MAX_WEIGHT:g}]"  # a gamma of 1e300 failed every frame
-            raise SettingsError(f"{owner}.gamma {name} must be {rule}, got {shown}")
-    margin, detect = getattr(settings, "collision_margin", 0.0), getattr(settings, "collision_detect", 1.0)
-    if detect <= margin:  # both checked above: the damper acts between the two distances
-        raise SettingsError(
-            f"{owner}.collision_detect must be larger than collision_margin ({margin}), got {detect}"
-        )
-
-
-def _is_real(value: object) -> bool:
-    return isinstance(value, numbers.Real) and not isinstance(value, bool)

@@ -27,13 +27,14 @@ class SolverSpec:
 
     Attributes:
         name: ``jm``, ``jv``, ``qp``, ``slsqp``, ``mink``.
-        module: The module holding its factory ``<name>_solver(settings, progress) -> Solver`` and
-            its settings class.
-        settings_class: The settings class's name in ``module`` (a :class:`SolverSettings`), None
-            where it takes none.
+        module: The module holding its factory ``<name>_solver(settings, progress) -> Solver``.
+        settings_class: Its settings class's name (a :class:`SolverSettings`) in
+            ``settings_module``, None where it takes none.
         takes_criteria: It can add human-likeness criteria.
         tracks_targets: It follows the hand targets (JM maps the joint angles instead: it is not
             warned about lagging hands or speeds it never promised to keep).
+        settings_module: The module holding the settings class: a light one, since a stack file's
+            values are checked against it before any solver loads (:mod:`hlik.solvers.settings`).
     """
 
     name: str
@@ -41,6 +42,7 @@ class SolverSpec:
     settings_class: str | None
     takes_criteria: bool = True
     tracks_targets: bool = True
+    settings_module: str = "hlik.solvers.settings"
 
     @property
     def factory(self) -> Callable[..., Solver]:
@@ -54,10 +56,10 @@ class SolverSpec:
 
     @property
     def settings(self) -> type[SolverSettings] | None:
-        """Its settings class, None where it takes none (imports the solver's module)."""
+        """Its settings class, None where it takes none (no solver module is imported)."""
         if self.settings_class is None:
             return None
-        return getattr(import_module(self.module), self.settings_class)
+        return getattr(import_module(self.settings_module), self.settings_class)
 
 
 # The solvers by name; a new solver adds one line here.

@@ -27,9 +27,9 @@ from hlik.robot.collision import CollisionPairs, DistanceBounds, near_pairs, pai
 from hlik.robot.model import Robot
 from hlik.solvers.base import Diagnostics, SolverResult
 from hlik.solvers.limits import JointBox as JointBox  # re-exported: the solvers' frame box
-from hlik.solvers.limits import LimitSettings as LimitSettings
 from hlik.solvers.limits import MotionLimits
 from hlik.solvers.qp_backend import solve_qp
+from hlik.solvers.settings import LimitSettings as LimitSettings
 
 
 @dataclass(frozen=True)

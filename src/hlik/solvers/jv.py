@@ -40,7 +40,7 @@ from hlik.criteria.learned import Learned
 from hlik.problem.problem import Problem
 from hlik.robot.model import Robot
 from hlik.robot.state import RobotState, robot_state
-from hlik.solvers.base import ConfiguredSolver, SolverResult, check_settings
+from hlik.solvers.base import ConfiguredSolver, SolverResult
 from hlik.solvers.frames import (
     FIRST_FRAME_SCENARIO,
     FrameResult,
@@ -57,74 +57,7 @@ from hlik.solvers.gradients import gradient, part_metric
 from hlik.solvers.limits import MotionLimits
 from hlik.solvers.mink_tasks import SelfCollisionLimit
 from hlik.solvers.qp_backend import solve_qp
-from hlik.solvers.settings import SolverSettings
-
-
-@dataclass(frozen=True)
-class JVSettings(SolverSettings):
-    """The controller's gains, the stopping rule and the limits (:class:`LimitSettings`).
-
-    Attributes:
-        criteria: Human-likeness criteria of the null-space task (paper names; the paper leaves MJE
-            out of JV).
-        scenario: ``pose`` tracks both TCP poses; ``relative`` tracks the relative pose of the hands
-            (paper Eqs. 3-4) and the TCP poses only at the first frame (Sec. V-B), as the QP does.
-        gamma: Criterion name -> scaling weight gamma_i (Table II; 1 where absent).
-        criterion_cost: w_i = criterion_cost * gamma_i, divided by the number of criteria (paper
-            Sec. V: 0.1).
-        jla_gamma: gamma of Chan & Dubey's H in the null-space cost (paper Sec. V: 4), so
-            w_H = criterion_cost * jla_gamma, not divided (H is no human-likeness criterion); 0 drops H.
-        step: Gain on the Cartesian error, x_dot = -step * e (Simox CompositeDiffIK ``stepSize``).
-        k: Null-space gain; k < 0 descends (paper Sec. V, Chan & Dubey Eq. 10).
-        max_null: Bound on the largest joint change of the null-space step, rad (paper:
-            max|dH| <= 0.2); it halves within a frame whenever the null-space step reverses.
-        max_step: Bound on the largest joint change of a whole step, scaled down uniformly, rad
-            (Simox CompositeDiffIK ``maxJointAngleStep``).
-        damping: Least lambda of the damped least-norm solution (m, as the position rows set the
-            Jacobian's scale). It keeps singular targets bounded.
-        error_damping: lambda² = damping² + |e|² (Sugihara 2011): large errors, i.e. targets out of
-            reach, get strong damping, small ones the least. False: lambda = damping throughout.
-        orientation_cost: Orientation rows (rad) relative to position rows (m) in the primary task;
-            it matters only where the targets conflict or are damped. 0.2 is the QP's 2 / 10.
-        rcond: Singular values of J below rcond times the largest count as null space.
-        max_iter: Steps per frame at most (paper: 100; the first frame gets ten times more).
-        tol: A frame has converged when no joint moved more than this in a step, rad.
-        reached_position, reached_orientation: With both above 0, a frame also ends, after its
-            first step, once every target is within this distance (m) and angle (rad) of the
-            robot's: the paper's "until reaching target poses". ``paper_opt.toml`` sets Simox
-            CompositeDiffIK's thresholds (``Target.maxPosError`` 10 mm, ``maxOriError`` 0.05 rad);
-            the default 0 steps on until ``tol`` (hands on target to well under a millimetre).
-        self_collision: Keep every pair of the robot's collision geoms ``collision_margin`` apart
-            (m) with the QP's velocity damper (a pair closer than ``collision_detect`` may approach
-            by at most ``collision_gain`` of its distance to the margin per step), as the task of
-            highest priority: a step that breaks it is replaced (:func:`avoiding_least_norm`).
-    """
-
-    criterion_cost: float = 0.1
-    jla_gamma: float = 4.0
-    step: float = 0.5
-    k: float = -0.5
-    max_null: float = 0.2
-    max_step: float = 0.2
-    damping: float = 5e-3
-    error_damping: bool = True
-    orientation_cost: float = 0.2
-    rcond: float = 1e-6
-    max_iter: int = 100
-    tol: float = 1e-4
-    reached_position: float = 0.0
-    reached_orientation: float = 0.0
-    collision_gain: float = 0.5
-
-    def __post_init__(self):
-        check_settings(
-            self,
-            at_least_zero=("jla_gamma", "damping", "reached_position", "reached_orientation"),
-            positive=("step", "max_null", "max_step", "tol"),
-            at_most_zero=("k",),  # k > 0 would climb the null-space cost
-            fractions=("rcond", "collision_gain"),
-            counts=("max_iter",),
-        )
+from hlik.solvers.settings import JVSettings
 
 
 @dataclass(frozen=True, eq=False)

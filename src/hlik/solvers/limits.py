@@ -27,17 +27,14 @@ constrained step). Written once here, so that they cannot drift apart.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import mujoco
 import numpy as np
 
 from hlik.robot.model import Robot
+from hlik.solvers.settings import LimitSettings
 
-# 3 deg: a controller's usual software margin, and ARMAR-III's smallest range (Wrist 1, 53 deg) keeps
-# nine tenths of its travel
-STOP_MARGIN = math.radians(3.0)
 # the share of the deceleration the acceleration limits could give a distance (|grad| @ a_max) that
 # braking before a collision margin counts on: the rest is left to the other rows (stops, torques)
 # and to the pair's normal turning as it closes
@@ -110,26 +107,6 @@ class JointBox:
         lower = np.minimum(np.maximum(self.lower - q, -max_step), 0.0)
         upper = np.maximum(np.minimum(self.upper - q, max_step), 0.0)
         return lower, upper
-
-
-@dataclass(frozen=True)
-class LimitSettings:
-    """What the solvers keep besides the position and speed limits (every solver's settings have
-    these fields; ``[qp]``, ``[jv]``, ``[slsqp]`` in a stack file set them).
-
-    Attributes:
-        stop_margin: Margin kept from every position stop, rad (at most a fifth of a joint's range).
-        acceleration_limits: Keep the robot's ``[acceleration_limits]`` and ``[jerk_limits]``, and brake
-            before the stops.
-        torque_limits: Keep the joint torques within ``torque_fraction`` of ``[effort_limits]``.
-        torque_fraction: Share of the effort limit the linearised torque rows allow (the rows
-            take the Coriolis terms at the previous frame's speed).
-    """
-
-    stop_margin: float = STOP_MARGIN
-    acceleration_limits: bool = True
-    torque_limits: bool = True
-    torque_fraction: float = 0.9
 
 
 @dataclass(frozen=True, eq=False)

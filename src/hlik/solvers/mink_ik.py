@@ -32,8 +32,9 @@ from hlik.solvers.frames import (
     step_budget,
     track,
 )
-from hlik.solvers.limits import LimitSettings, MotionLimits
+from hlik.solvers.limits import MotionLimits
 from hlik.solvers.mink_tasks import CriterionTask, HandBandLimit, SelfCollisionLimit, StateCache
+from hlik.solvers.settings import LimitSettings
 
 
 class MinkSolver:

@@ -176,7 +176,7 @@ def _setting(solver: str, key: str, value: object, fields: dict, path: Path) -> 
     if key == "gamma":
         return _gamma(value, path, f"{solver}.gamma")
     if solver == "mink" and key in ("tasks", "limits"):
-        from hlik.solvers.mink_stack import check_specs
+        from hlik.solvers.mink_specs import check_specs
 
         try:
             return check_specs(value, key)

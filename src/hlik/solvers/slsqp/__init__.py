@@ -27,10 +27,10 @@ scores (``bench/slsqp_precondition.py``; ``precondition="scale"`` only divides t
 :func:`objective_scale`, the earlier remedy).
 """
 
+from hlik.solvers.settings import PRECONDITIONERS, SLSQPSettings
 from hlik.solvers.slsqp.constraints import BandConstraint, BoxConstraint, CollisionConstraint
 from hlik.solvers.slsqp.groove import groove, groove_curvature, groove_secant
 from hlik.solvers.slsqp.objective import Chart, Loss, Objective, build_losses, loss_curvature, objective_scale
-from hlik.solvers.slsqp.settings import PRECONDITIONERS, SLSQPSettings
 from hlik.solvers.slsqp.solver import make_optimizer, slsqp_solver, solve, solve_frame
 
 __all__ = [

@@ -14,8 +14,8 @@ from hlik.robot.model import Robot
 from hlik.robot.state import robot_state
 from hlik.solvers.frames import JointBox, collision_floors, hand_band
 from hlik.solvers.gradients import part_gradients
+from hlik.solvers.settings import SLSQPSettings
 from hlik.solvers.slsqp.objective import Chart, Loss, loss_sites
-from hlik.solvers.slsqp.settings import SLSQPSettings
 
 COLLISION_TOLERANCE = 1e-4  # m, NLopt's tolerance on the collision constraints
 BAND_TOLERANCE = 1e-4  # m or rad, NLopt's tolerance on the hands' band

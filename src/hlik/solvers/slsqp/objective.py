@@ -20,8 +20,8 @@ from hlik.robot.model import Robot
 from hlik.robot.state import robot_state
 from hlik.solvers.frames import FIRST_FRAME_SCENARIO, first_frame_terms
 from hlik.solvers.gradients import gradient_of, metric, part_gradients_of, part_metric
+from hlik.solvers.settings import SLSQPSettings
 from hlik.solvers.slsqp.groove import groove, groove_curvature, groove_secant
-from hlik.solvers.slsqp.settings import SLSQPSettings
 
 # Sec. IV-A's gamma_p = 10 for the TCP position. The relative position and the elbows behind the
 # back (m, like fPOS) get it too:

@@ -19,6 +19,7 @@ from hlik.robot.model import Robot
 from hlik.solvers.base import ConfiguredSolver, SolverResult
 from hlik.solvers.frames import FrameResult, JointBox, box_with_limits, track
 from hlik.solvers.limits import MotionLimits
+from hlik.solvers.settings import SLSQPSettings
 from hlik.solvers.slsqp.constraints import (
     BAND_TOLERANCE,
     BOX_TOLERANCE,
@@ -28,7 +29,6 @@ from hlik.solvers.slsqp.constraints import (
     CollisionConstraint,
 )
 from hlik.solvers.slsqp.objective import Chart, Objective, build_losses
-from hlik.solvers.slsqp.settings import SLSQPSettings
 
 # NLopt exceptions that end one frame, not the run, and the result code each stands for. NLopt's
 # generic failure also comes as a plain RuntimeError("nlopt failure"): only that message counts, so
