@@ -17,7 +17,8 @@ percentile) hand orientation error in degrees. Posture (:mod:`hlik.posture`, med
 takes): ``lean`` the trunk lean's median difference from the subject's in degrees, ``behind %`` the
 frames with an elbow more than 5 cm behind the shoulders' frontal plane (either arm; ``subj %`` the
 subject's), ``hands`` the hands' distance in front of the shoulders over the subject's (per arm
-length), ``path`` the arm joints' path over the mapped human pose's. An approach
+length), ``wrists`` the same for the wrists, ``path`` the arm joints' path over the mapped human
+pose's. An approach
 ``solver@stack+...`` takes its weights from that stack (``slsqp@paper_opt``).
 
 Run by hand: ``python bench/quality.py [--robots armar3,armar6] [--approaches qp,qp+SYN]
@@ -78,7 +79,7 @@ def run(
     learned = learn(robot)
     rows, fpos, freach, off, times, capped, speed, contact = [], [], [], [], [], [], [], []
     acc, acc_over, tau, tau_over, stop, floor, fori = [], [], [], [], [], [], []
-    lean, behind, subject_behind, hands, path = [], [], [], [], []
+    lean, behind, subject_behind, hands, wrists, path = [], [], [], [], [], []
     for take in takes:
         spec = RunSpec(
             motion=take,
@@ -113,6 +114,7 @@ def run(
         behind.append(ev.posture.robot.elbow_behind.any(axis=1))
         subject_behind.append(ev.posture.subject.elbow_behind.any(axis=1))
         hands.append(np.mean(pj["hand_front_ratio"]))
+        wrists.append(np.mean(pj["wrist_front_ratio"]))
         path.append(pj["path_ratio"])
         fpos.append(err.ravel())
         freach.append(err[reachable(robot, traj)])
@@ -142,6 +144,7 @@ def run(
         "behind": 100 * np.mean(np.concatenate(behind)),
         "subj_behind": 100 * np.mean(np.concatenate(subject_behind)),
         "hands": float(np.median(hands)),
+        "wrists": float(np.median(wrists)),
         "path": float(np.median(path)),
     }
 
@@ -189,6 +192,7 @@ def main() -> None:
         ("behind %", 8),
         ("subj %", 6),
         ("hands", 5),
+        ("wrists", 6),
         ("path", 5),
     )
     print(head + " ".join(f"{name:>{width}s}" for name, width in cols), flush=True)
@@ -212,7 +216,8 @@ def main() -> None:
                 f"{r['capped']:8.1f} {r['speed']:6.2f} {r['contact']:9.1f} {r['acc']:5.2f} "
                 f"{r['acc_over']:5.1f} {r['tau']:5.2f} {r['tau_over']:5.1f} {r['stop']:6.1f} "
                 f"{r['floor']:8.2f} {r['lag']:5.1f} {r['fori']:5.1f} {r['fori95']:6.1f} {r['lean']:5.1f} "
-                f"{r['behind']:8.1f} {r['subj_behind']:6.1f} {r['hands']:5.2f} {r['path']:5.2f}",
+                f"{r['behind']:8.1f} {r['subj_behind']:6.1f} {r['hands']:5.2f} {r['wrists']:6.2f} "
+                f"{r['path']:5.2f}",
                 flush=True,
             )
 

@@ -58,7 +58,6 @@ def test_a_mistake_is_answered_before_any_heavy_import(tmp_path, args, message):
     assert not any(tmp_path.iterdir()), "nothing is written"
 
 
-
 STACK_VALUES = [
     ("[qp]\nvelocity_cost = -1\n", "[qp] velocity_cost must be a finite number >= 0, got -1"),
     ("[qp.gamma]\nHJA_r = 1e300\n", "HJA_r must be a finite number in [0, 1e+06], got 1e+300"),
@@ -89,6 +88,7 @@ def test_a_bad_stack_file_value_is_answered_before_any_heavy_import(tmp_path, ta
     if "solver" not in table:
         assert heavy == "", f"imported {heavy} before the error"
     assert not any(work.iterdir()), "nothing is written"
+
 
 @pytest.mark.parametrize(
     ("relative", "kind"),

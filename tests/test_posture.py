@@ -35,6 +35,17 @@ def test_an_upright_person_has_no_lean_and_the_offsets_of_the_construction():
     np.testing.assert_allclose(p.arm_length, length)
 
 
+def test_a_long_hand_on_the_subjects_tcp_is_ahead_but_its_wrist_is_where_the_arm_poses_it():
+    """The same arm posture with a hand twice the subject's length, pointing forward: the TCP front
+    grows by the extra length and the wrist front stays; the wrist ratio is 1, the TCP ratio is not."""
+    subject = _measure(SHOULDER, ELBOW, WRIST, TCP, PELVIS)
+    robot = _measure(SHOULDER, ELBOW, WRIST, WRIST + 2 * (TCP - WRIST), PELVIS)
+    np.testing.assert_allclose(robot.wrist_front[0], WRIST[:, 1])
+    np.testing.assert_allclose(robot.hand_front[0] - subject.hand_front[0], 0.08)
+    np.testing.assert_allclose(robot.wrist_front_share / subject.wrist_front_share, 1.0)
+    assert np.all(robot.hand_front_share / subject.hand_front_share > 1.2)
+
+
 @pytest.mark.parametrize("angle", [0.3, -0.2, 0.6])
 def test_a_hunched_trunk_leans_by_its_pitch(angle):
     """The upper body pitched forward about the pelvis (about the x axis, right): lean = the pitch,

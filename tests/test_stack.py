@@ -140,11 +140,13 @@ def test_cli_rejects_a_bad_stack_before_solving(tmp_path):
 
 
 def test_stack_slsqp_settings_are_the_papers():
-    from hlik.solvers.slsqp import SLSQPSettings
+    from hlik.solvers.settings import SLSQPSettings
 
     assert load_stack("paper_opt").settings("slsqp") == SLSQPSettings()  # the paper's OPT
     tuned = load_stack("ee_pose").settings("slsqp")
-    paper = replace(tuned, criterion_cost=10.0, max_eval=100, orientation_cost=9.0, elbow_cost=0.0)
+    paper = replace(
+        tuned, criterion_cost=10.0, max_eval=100, orientation_cost=9.0, elbow_cost=0.0, elbow_allowance=0.02
+    )
     assert paper == SLSQPSettings()
     relative = load_stack("relative_pose").settings("slsqp")
     assert relative == SLSQPSettings.relative()

@@ -23,7 +23,6 @@ import mujoco
 import numpy as np
 
 from hlik.criteria.angles import joint_difference
-from hlik.human.motion import frame_period
 from hlik.robot.floor import lowest_points
 from hlik.robot.model import Robot
 from hlik.trajectory import Trajectory
@@ -163,14 +162,14 @@ class ControllerChecks:
 def joint_velocity(traj: Trajectory, robot: Robot) -> np.ndarray:
     """(T, n) each joint's speed into each frame, rad/s (0 into the first: at rest before it), the
     differencing of every check here (unlimited joints by their shorter way round)."""
-    q, dt = traj.q, frame_period(traj.times)
+    q, dt = traj.q, traj.period
     steps = joint_difference(q[1:], q[:-1], np.isinf(robot.lower))  # (T-1, n)
     return np.vstack([np.zeros((1, robot.dof)), steps / dt])
 
 
 def controller_checks(traj: Trajectory, robot: Robot) -> ControllerChecks:
     """The :class:`ControllerChecks` of ``traj`` on ``robot``."""
-    q, dt = traj.q, frame_period(traj.times)
+    q, dt = traj.q, traj.period
     unlimited = np.isinf(robot.lower)
     velocity = joint_velocity(traj, robot)
     accel = np.zeros_like(q)

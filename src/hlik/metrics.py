@@ -18,7 +18,6 @@ from hlik.criteria.functional import position_error, rotation_angle
 from hlik.criteria.learned import Learned
 from hlik.criteria.smoothness import history
 from hlik.executable import ControllerChecks, controller_checks
-from hlik.human.motion import frame_period
 from hlik.posture import Posture, posture
 from hlik.problem.reference import HumanReference, reference_sample
 from hlik.robot.model import Robot, self_contacts
@@ -130,7 +129,7 @@ COST_CHUNK = 4096  # frames whose Jacobians are held at once (7.7 kB a frame on 
 def trajectory_sample(traj: Trajectory, reference: HumanReference) -> Sample:
     """The :class:`Sample` of every frame of ``traj``: its targets, the human reference, the previous
     three configurations (the first frame repeated before the start) and the median frame period."""
-    return reference_sample(reference, traj.targets, slice(None), history(traj.q), frame_period(traj.times))
+    return reference_sample(reference, traj.targets, slice(None), history(traj.q), traj.period)
 
 
 def costs(traj: Trajectory, robot: Robot, learned: Learned) -> dict[str, np.ndarray]:
@@ -144,7 +143,7 @@ def costs(traj: Trajectory, robot: Robot, learned: Learned) -> dict[str, np.ndar
         registry.criterion(n, robot, learned) for n in registry.human_likeness() + registry.functional()
     ]
     sites = tuple(sorted({i for c in criteria for i in c.value_sites}))
-    dt, parts = frame_period(traj.times), []
+    dt, parts = traj.period, []
     for start in range(0, traj.n_frames, COST_CHUNK):
         rows = slice(start, start + COST_CHUNK)
         # the three configurations before each frame of the chunk (the first repeated before the start)

@@ -14,6 +14,11 @@ S the shoulders' midpoint and L an arm's length (shoulder to elbow plus elbow to
 - **elbow front** (m, per arm): the elbow's offset from the frontal plane, ``(elbow − S) · f``;
   negative behind the back;
 - **hand front** (m, per arm): the TCP's distance in front of the shoulders, ``(tcp − S) · f``;
+- **wrist front** (m, per arm): the wrist's, ``(wrist − S) · f``. The robots' hands are long for
+  their arms (wrist to TCP 0.24 L on ARMAR-III, 0.27 L on ARMAR-6, 0.32 L on a Panda, the subject's
+  0.16 L), so a robot whose TCP is on the subject's has its TCP further ahead of its shoulders in
+  arm lengths than the subject's even where its arm is posed like the subject's: the wrist is
+  where the arm's posture shows, the TCP where the task does;
 - **swivel** (rad, per arm): the elbow's angle about the shoulder–wrist axis
   (:func:`hlik.criteria.eea.swivel_angle`, Kim et al.'s Ψ; NaN where singular);
 - **path ratio**: the arm joints' path over the take, ``Σ_t Σ_j |Δq_j|``, over the mapped human
@@ -50,6 +55,7 @@ class BodyPosture:
     lean: np.ndarray
     elbow_front: np.ndarray
     hand_front: np.ndarray
+    wrist_front: np.ndarray
     swivel: np.ndarray
     arm_length: np.ndarray
 
@@ -62,6 +68,11 @@ class BodyPosture:
     def hand_front_share(self) -> np.ndarray:
         """(T, 2) the hand front over the arm's length."""
         return self.hand_front / self.arm_length
+
+    @property
+    def wrist_front_share(self) -> np.ndarray:
+        """(T, 2) the wrist front over the arm's length."""
+        return self.wrist_front / self.arm_length
 
     @property
     def elbow_behind(self) -> np.ndarray:
@@ -97,6 +108,9 @@ class Posture:
             "hand_front_share": arms(r.hand_front_share),
             "subject_hand_front_share": arms(s.hand_front_share),
             "hand_front_ratio": arms(r.hand_front_share / s.hand_front_share),
+            "wrist_front_share": arms(r.wrist_front_share),
+            "subject_wrist_front_share": arms(s.wrist_front_share),
+            "wrist_front_ratio": arms(r.wrist_front_share / s.wrist_front_share),
             "swivel_difference_deg": arms(np.degrees(np.abs(wrap(r.swivel - s.swivel)))),
             "path_ratio": self.path_ratio,
         }
@@ -127,6 +141,7 @@ def body_posture(
         lean=lean,
         elbow_front=np.einsum("tai,ti->ta", elbow - mid[:, None], front),
         hand_front=np.einsum("tai,ti->ta", tcp - mid[:, None], front),
+        wrist_front=np.einsum("tai,ti->ta", wrist - mid[:, None], front),
         swivel=swivel_angle(shoulder, elbow, wrist),
         arm_length=np.asarray(arm_length, dtype=float),
     )

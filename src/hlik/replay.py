@@ -23,7 +23,6 @@ import mujoco
 import numpy as np
 
 from hlik.executable import inverse_model, joint_velocity
-from hlik.human.motion import frame_period
 from hlik.robot.model import SIDES, Robot
 from hlik.trajectory import Trajectory
 
@@ -106,7 +105,7 @@ def commanded(traj: Trajectory, robot: Robot) -> tuple[np.ndarray, np.ndarray, f
     """What :func:`reference` reads: (T, n) the angles with unlimited joints unwound, (T + 2, n)
     the speed into each frame (at rest before the first) and after the last (a take may end
     moving: it goes on at its last speed), and the frame period, s."""
-    n, dt = robot.dof, frame_period(traj.times)
+    n, dt = robot.dof, traj.period
     v = joint_velocity(traj, robot)
     q = traj.q[0] + np.cumsum(np.vstack([np.zeros((1, n)), v[1:] * dt]), axis=0)
     return q, np.vstack([v, v[-1:], v[-1:]]), dt

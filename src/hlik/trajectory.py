@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hlik.human.motion import HumanMotion, ObjectMotion
+from hlik.human.motion import HumanMotion, ObjectMotion, frame_period
 from hlik.problem.placement import Placement
 from hlik.problem.reference import HumanReference
 from hlik.problem.targets import HandTargets
@@ -69,6 +69,11 @@ class Trajectory:
     @property
     def n_frames(self) -> int:
         return len(self.times)
+
+    @property
+    def period(self) -> float:
+        """The median frame step, s (:func:`~hlik.human.motion.frame_period`: 0.01 for one frame)."""
+        return frame_period(self.times)
 
     def save(self, path: str | Path) -> Path:
         """Write to ``path`` (``.npz``) atomically: a failed write leaves no partial file.

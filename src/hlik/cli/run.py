@@ -182,29 +182,42 @@ def run(
             check_outputs(out, out.with_suffix(".npz"), _inputs(spec), create=False, force=force)
         spec.check()  # names, numbers and files before the heavy imports below
         from hlik.export import WRITERS
-        from hlik.pipeline import run as run_pipeline
         from hlik.robot.model import load_robot
 
         if export is not None and export not in WRITERS:
             raise HlikError(f"unknown --export format {export!r}; choose one of: {', '.join(WRITERS)}")
         r = load_robot(robot)
-        stem = file_stem(spec.motion_path.stem, r.name, _tag(spec, r, layout, corpus_source))
-        rrd = out or Path("recordings") / f"{stem}.rrd"
-        npz = rrd.with_suffix(".npz")
-        check_outputs(rrd, npz, _inputs(spec), create=out is None, force=force)
-        with progress_bar(spinner=True) as bar:
-            task = bar.add_task("", total=None)
-
-            def show(stage: str, done: int | None, total: int | None) -> None:
-                bar.update(task, description=stage, completed=done or 0, total=total)
-
-            result = run_pipeline(spec, show, robot=r)
-            bar.update(task, description=f"writing {rrd}", total=None)
-            info = _settings(result, layout)
-            write_outputs(npz, rrd, result.trajectory, r, layout, evaluation=result.evaluation, info=info)
+        rrd, npz = _outputs(spec, r, out, force, _tag(spec, r, layout, corpus_source))
+        result = _run_and_write(spec, r, rrd, layout)
     _report(result, rrd, npz, corpus_source)
     if export is not None:
         _export(result, npz, export)
+
+
+def _run_and_write(spec: RunSpec, robot: Robot, rrd: Path, layout: str) -> RunResult:
+    """The pipeline's run with a progress line on stderr, then the recording and the trajectory."""
+    from hlik.pipeline import run as run_pipeline
+
+    with progress_bar(spinner=True) as bar:
+        task = bar.add_task("", total=None)
+
+        def show(stage: str, done: int | None, total: int | None) -> None:
+            bar.update(task, description=stage, completed=done or 0, total=total)
+
+        result = run_pipeline(spec, show, robot=robot)
+        bar.update(task, description=f"writing {rrd}", total=None)
+        npz, info = rrd.with_suffix(".npz"), _settings(result, layout)
+        write_outputs(npz, rrd, result.trajectory, robot, layout, evaluation=result.evaluation, info=info)
+    return result
+
+
+def _outputs(spec: RunSpec, robot: Robot, out: Path | None, force: bool, tag: str) -> tuple[Path, Path]:
+    """The recording and trajectory files of a run, checked: ``--out`` or the default name under
+    ``recordings/`` (created), refused where they exist without ``--force`` or name an input."""
+    rrd = out or Path("recordings") / f"{file_stem(spec.motion_path.stem, robot.name, tag)}.rrd"
+    npz = rrd.with_suffix(".npz")
+    check_outputs(rrd, npz, _inputs(spec), create=out is None, force=force)
+    return rrd, npz
 
 
 def _report(result: RunResult, rrd: Path, npz: Path, corpus_source: str) -> None:

@@ -53,7 +53,8 @@ def posture_line(p) -> str:
         f"elbows in front of the shoulders {pair('elbow_front_share')} arm (subject "
         f"{pair('subject_elbow_front_share')}), > 5 cm behind in {percent('elbow_behind_share')} of frames "
         f"(subject {percent('subject_elbow_behind_share')}); hands in front {pair('hand_front_share')} arm "
-        f"(subject {pair('subject_hand_front_share')}); swivel off the subject's by "
+        f"(subject {pair('subject_hand_front_share')}), wrists {pair('wrist_front_share')} "
+        f"(subject {pair('subject_wrist_front_share')}); swivel off the subject's by "
         f"{' / '.join(f'{v:.0f}°' for v in j['swivel_difference_deg'])}; arm joint path "
         f"{j['path_ratio']:.2f} of the subject's"
     )

@@ -12,7 +12,6 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from hlik.human.motion import frame_period
 from hlik.robot.model import Robot
 from hlik.trajectory import Trajectory
 
@@ -29,7 +28,7 @@ def header(traj: Trajectory, robot: Robot, violation: str | None) -> list[str]:
     """The comment lines (without ``#``) above the table."""
     lines = [
         f"hlik trajectory: robot {robot.name} ({robot.title}), solver {traj.solver}, "
-        f"{len(traj.times)} frames at {1.0 / frame_period(traj.times):g} Hz",
+        f"{len(traj.times)} frames at {1.0 / traj.period:g} Hz",
         "units: time s from the first frame; joints rad (hinge angles, the robot model's zero and sign); "
         "base_x, base_y, base_z m",
         "base pose: world <- robot base (z up, the floor at z = 0), quaternion order w, x, y, z "

@@ -22,7 +22,6 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from hlik.human.motion import frame_period
 from hlik.robot.model import Robot
 from hlik.trajectory import Trajectory
 from hlik.util.errors import HlikError
@@ -59,7 +58,7 @@ def write(traj: Trajectory, robot: Robot, path: Path, violation: str | None = No
         HlikError: a frame rate that is not a whole number of frames per second (LeRobot's fps is
             an integer; resample with ``hlik run --rate``).
     """
-    fps = 1.0 / frame_period(traj.times)
+    fps = 1.0 / traj.period
     if abs(fps - round(fps)) > 1e-6 * fps:
         raise HlikError(
             f"{path}: LeRobot needs a whole frame rate, the trajectory's is {fps:g} Hz (hlik run --rate)"
@@ -83,6 +82,14 @@ def write(traj: Trajectory, robot: Robot, path: Path, violation: str | None = No
     stats = {key: _stats(np.asarray(values).reshape(n, -1)) for key, values in columns.items()}
     _write_table(path / DATA.format(chunk_index=0, file_index=0), _table(columns))
     _write_table(path / "meta" / "tasks.parquet", _tasks(task(traj, robot)))
+    _write_table(path / EPISODES.format(chunk_index=0, file_index=0), _episodes(traj, robot, n, stats))
+    info = _info(robot, n, int(round(fps)), features, violation)
+    (path / "meta" / "info.json").write_text(json.dumps(info, indent=2) + "\n", encoding="utf-8")
+    (path / "meta" / "stats.json").write_text(json.dumps(stats, indent=2) + "\n", encoding="utf-8")
+
+
+def _episodes(traj: Trajectory, robot: Robot, n: int, stats: dict) -> pa.Table:
+    """``meta/episodes``: the one episode of ``n`` frames with its task and per-feature stats."""
     episode: dict[str, object] = {
         "episode_index": 0,
         "tasks": [task(traj, robot)],
@@ -95,7 +102,11 @@ def write(traj: Trajectory, robot: Robot, path: Path, violation: str | None = No
         "meta/episodes/file_index": 0,
     }
     episode |= {f"stats/{key}/{stat}": value for key, s in stats.items() for stat, value in s.items()}
-    _write_table(path / EPISODES.format(chunk_index=0, file_index=0), pa.Table.from_pylist([episode]))
+    return pa.Table.from_pylist([episode])
+
+
+def _info(robot: Robot, n: int, fps: int, features: dict, violation: str | None) -> dict:
+    """``meta/info.json``: the dataset's layout, features and, where exported anyway, the violation."""
     info = {
         "codebase_version": VERSION,
         "robot_type": robot.name,
@@ -105,7 +116,7 @@ def write(traj: Trajectory, robot: Robot, path: Path, violation: str | None = No
         "chunks_size": 1000,
         "data_files_size_in_mb": 100,
         "video_files_size_in_mb": 200,
-        "fps": int(round(fps)),
+        "fps": fps,
         "splits": {"train": "0:1"},
         "data_path": DATA,
         "video_path": None,
@@ -115,8 +126,7 @@ def write(traj: Trajectory, robot: Robot, path: Path, violation: str | None = No
         info["hlik_violation"] = (
             f"exported with --allow-violations; a controller would reject it: {violation}"
         )
-    (path / "meta" / "info.json").write_text(json.dumps(info, indent=2) + "\n", encoding="utf-8")
-    (path / "meta" / "stats.json").write_text(json.dumps(stats, indent=2) + "\n", encoding="utf-8")
+    return info
 
 
 def _table(columns: dict[str, np.ndarray]) -> pa.Table:

@@ -117,8 +117,8 @@ class HumanMotion:
 
     @property
     def rate(self) -> float:
-        """Median frame rate in Hz."""
-        return float(1.0 / np.median(np.diff(self.times)))
+        """Median frame rate in Hz (:func:`frame_period`)."""
+        return 1.0 / frame_period(self.times)
 
     def joint(self, name: str) -> np.ndarray:
         """(T,) angles of one joint, by name."""

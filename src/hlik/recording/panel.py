@@ -19,7 +19,7 @@ def summary(traj: Trajectory, robot: Robot, evaluation: Evaluation | None, info:
     from hlik.util.version import __version__
 
     d = traj.diagnostics
-    rate = (traj.n_frames - 1) / (traj.times[-1] - traj.times[0]) if traj.n_frames > 1 else 0.0
+    rate = 1.0 / traj.period
     settings = {
         "motion": f"{traj.motion.name} ({traj.n_frames} frames, {rate:.0f} Hz)",
         "robot": f"{robot.title} ({robot.name})",

@@ -3,7 +3,6 @@ and palette, the chunk size and the score curves' time scale."""
 
 from __future__ import annotations
 
-import numpy as np
 import rerun as rr
 
 from hlik.recording.layout import LAYOUTS as LAYOUTS  # re-exported
@@ -52,5 +51,5 @@ PALETTE = (
 
 def score_window(trajectory: Trajectory) -> int:
     """:data:`SCORE_WINDOW` in frames of ``trajectory`` (odd, at least 1)."""
-    dt = float(np.median(np.diff(trajectory.times))) if trajectory.n_frames > 1 else SCORE_WINDOW
+    dt = trajectory.period if trajectory.n_frames > 1 else SCORE_WINDOW
     return 2 * int(round(SCORE_WINDOW / dt / 2.0)) + 1

@@ -19,6 +19,7 @@ from hlik.metrics import Evaluation
 from hlik.recording.columns import Curve, Track, _curve, _curve_columns, _entity, _error
 from hlik.recording.panel import summary
 from hlik.recording.scene import (
+    ObjectBox,
     _display_placement,
     _frames_track,
     _held_object,
@@ -89,15 +90,8 @@ def write_recording(
     _check_space(path, trajectory.n_frames)
     recording_id = f"{trajectory.motion.name}-{robot.name}-{trajectory.solver}"
     fit = fit_error(trajectory.motion)
-    view = blueprint(
-        robot,
-        scenario=scenario,
-        criteria=tuple(curves),
-        unified=evaluation is not None,
-        fitted=fit is not None,
-        camera=scene_camera(trajectory, robot, layout),
-        robot_camera=robot_camera(trajectory, robot),
-    )
+    cameras = scene_camera(trajectory, robot, layout), robot_camera(trajectory, robot)
+    view = blueprint(robot, scenario, tuple(curves), evaluation is not None, *cameras, fitted=fit is not None)
     with atomic_path(path) as tmp:
         rec = rr.RecordingStream("hlik", recording_id=recording_id)
         try:
@@ -202,8 +196,15 @@ def _scene(
 ) -> list[Track]:
     """Log the 3D scene's static parts; the tracks of its moving ones (human, objects, robot, frames)."""
     rec.log("/world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
-    times = traj.times
+    tracks, boxes = _human_scene(rec, traj, chunk_frames, fit)
+    return tracks + _robot_scene(rec, traj, robot, layout, boxes)
 
+
+def _human_scene(
+    rec, traj: Trajectory, chunk_frames: int, fit: np.ndarray | None
+) -> tuple[list[Track], dict[str, ObjectBox]]:
+    """The human, its hand paths, keypoints and the scene objects; the tracks and the objects' boxes."""
+    times = traj.times
     human = human_model(traj.motion.height)
     tracks = [
         _model(
@@ -222,7 +223,14 @@ def _scene(
     boxes = {name: box for name, box in fitted.items() if box is not None}  # never known: not drawn
     for name, box in boxes.items():
         tracks += _object(rec, _entity(name), traj.motion.objects[name], times, box)
+    return tracks, boxes
 
+
+def _robot_scene(
+    rec, traj: Trajectory, robot: Robot, layout: str, boxes: dict[str, ObjectBox]
+) -> list[Track]:
+    """The robot, its placement, the objects as it would carry them, its target and TCP paths and frames."""
+    times = traj.times
     # The robot base as drawn (the side layout shifts it beside the human; overlay shows it where
     # the placement put it) and the rule that placed it.
     shown = _display_placement(traj.placement, layout)
@@ -242,9 +250,7 @@ def _scene(
         rr.Transform3D(translation=shown.translation, mat3x3=shown.rotation),
         static=True,
     )
-    tracks.append(
-        _model(rec, "/world/robot/bodies", robot.model, lambda rows: traj.q[rows], times, alpha=255)
-    )
+    tracks = [_model(rec, "/world/robot/bodies", robot.model, lambda rows: traj.q[rows], times, alpha=255)]
     for name, box in boxes.items():  # and as the robot would carry them
         tracks += _held_object(rec, _entity(name), traj.motion.objects[name], traj, box)
     _log_paths(rec, "/world/robot/target_paths", traj.targets.pos, TARGET_COLORS, show_labels=False)
@@ -323,7 +329,8 @@ def _curves(
             ("subject", evaluation.posture.subject, TARGET_COLORS),
         ):
             for i, side in enumerate(SIDES):
-                for part, values in (("elbow", body.elbow_front_share), ("hand", body.hand_front_share)):
+                shares = (body.elbow_front_share, body.wrist_front_share, body.hand_front_share)
+                for part, values in zip(("elbow", "wrist", "hand"), shares, strict=True):
                     label = f"{who} {side} {part} ahead (arm lengths)"
                     entity = _curve(rec, f"/plots/posture/{who}_{side}_{part}", label, colors[side])
                     curves[entity] = values[:, i]

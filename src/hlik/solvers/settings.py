@@ -129,8 +129,8 @@ class QPSettings(SolverSettings):
     jerk_cost: float = 0.005
     # ARMAR-III's hip upright (issue 28; tasks/ee_pose.toml and README "Trunk upright" say why 2)
     trunk_cost: float = 2.0
-    # 2-Panda's elbows out from behind its back (issue 28; tasks/ee_pose.toml says why 10)
-    elbow_cost: float = 10.0
+    # 2-Panda's elbows out from behind its back (issue 28; tasks/ee_pose.toml says why 11)
+    elbow_cost: float = 11.0
     elbow_allowance: float = 0.02
     position_band: float = 0.0
     orientation_band: float = 0.0

@@ -5,9 +5,10 @@ A cell's table has one row per frame: ``take``, ``robot``, ``approach``, ``solve
 units of the criterion's cost), ``fpos_left`` and ``fpos_right`` (m), ``iterations``, ``converged``,
 ``failed``, ``solve_time`` (s), ``collision`` and ``speed_ratio`` (the step into the frame; 0 at the
 first), and the posture measures (:mod:`hlik.posture`) of the robot and the subject: ``lean_robot``,
-``lean_subject`` (rad), ``elbow_front_<side>_<who>``, ``hand_front_<side>_<who>`` (arm lengths) and
-``swivel_<side>_<who>`` (rad; NaN where undefined). Files are written whole or not at all, so a
-rerun skips finished cells and a crash loses one cell.
+``lean_subject`` (rad), ``elbow_front_<side>_<who>``, ``hand_front_<side>_<who>``,
+``wrist_front_<side>_<who>`` (arm lengths) and ``swivel_<side>_<who>`` (rad; NaN where
+undefined). Files are written whole or not at all, so a rerun skips finished cells and a crash
+loses one cell.
 """
 
 from __future__ import annotations
@@ -122,6 +123,7 @@ def run_cell(
         for i, side in enumerate(("left", "right")):
             columns[f"elbow_front_{side}_{who}"] = body.elbow_front_share[:, i]
             columns[f"hand_front_{side}_{who}"] = body.hand_front_share[:, i]
+            columns[f"wrist_front_{side}_{who}"] = body.wrist_front_share[:, i]
             columns[f"swivel_{side}_{who}"] = body.swivel[:, i]
     meta = {
         "hlik": __version__,
