@@ -234,6 +234,20 @@ def test_object_labels_drop_true_and_sit_above_the_box(run):
         assert np.all(z_label > z_box)
 
 
+def test_an_object_without_markers_is_drawn_as_its_frame_not_a_box(run):
+    """The Cut take's sideboard is recorded as a pose alone: its extent is unknown, so it is drawn
+    as axes at the human and at the robot, while every object with markers is a box."""
+    traj, _, _, static, _ = run
+    for name, obj in traj.motion.objects.items():
+        for entity in (f"/world/objects/{name}", f"/world/robot/objects/{name}"):
+            if entity not in static:  # a pose never known: not drawn
+                continue
+            drawn = " ".join(static[entity])
+            assert ("Boxes3D" in drawn) == bool(obj.markers), (entity, drawn)
+            assert ("TransformAxes3D" in drawn) != bool(obj.markers), (entity, drawn)
+    assert any(not obj.markers for obj in traj.motion.objects.values())
+
+
 def test_the_posture_measures_are_logged_for_the_robot_and_the_subject(run):
     _, ev, _, _, temporal = run
     for who, body in (("robot", ev.posture.robot), ("subject", ev.posture.subject)):
@@ -241,6 +255,8 @@ def test_the_posture_measures_are_logged_for_the_robot_and_the_subject(run):
         for i, side in enumerate(("left", "right")):
             logged = _scalars(temporal[f"/plots/posture/{who}_{side}_elbow"])
             np.testing.assert_allclose(logged, body.elbow_front_share[:, i])
+            logged = _scalars(temporal[f"/plots/posture/{who}_{side}_wrist"])
+            np.testing.assert_allclose(logged, body.wrist_front_share[:, i])
 
 
 def test_the_robot_carries_the_objects_its_hands_hold(run, cut_take, armar6):

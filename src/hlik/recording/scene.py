@@ -201,7 +201,8 @@ def _frames_track(rec, entity: str, pos: np.ndarray, rot: np.ndarray, times: np.
 
 def _object_box(obj: ObjectMotion, chunk_frames: int) -> ObjectBox | None:
     """Where the object's pose is known (T,) bool, and the box drawn for it in its own frame:
-    half sizes and centre (3,), m, around its markers (or a 5 cm cube); None if it never is."""
+    half sizes and centre (3,), m, around its markers (a 5 cm cube for one without, which
+    :func:`_object_shape` draws as axes); None if it never is."""
     known = np.all(np.isfinite(obj.position), axis=1) & np.all(np.isfinite(obj.rotation), axis=(1, 2))
     if not known.any():
         return None
@@ -215,17 +216,22 @@ def _object_box(obj: ObjectMotion, chunk_frames: int) -> ObjectBox | None:
     return known, half, center
 
 
+def _object_shape(obj: ObjectMotion, half: np.ndarray, center: np.ndarray) -> rr.Boxes3D | rr.TransformAxes3D:
+    """The box fitted to an object's markers; an object recorded without markers (a pose alone: the
+    KIT takes' sideboard) has no known extent, so it is drawn as its frame's axes, not as a box of
+    made-up size."""
+    if not obj.markers:
+        return rr.TransformAxes3D(0.15)
+    return rr.Boxes3D(half_sizes=[half], centers=[center], colors=[OBJECT_COLOR], fill_mode=_FILL)
+
+
 def _object(rec, entity: str, obj: ObjectMotion, times: np.ndarray, box: ObjectBox) -> list[Track]:
     """Log a scene object as its box (:func:`_object_box`) at ``/world/objects/<entity>`` and its
     name, ``true_`` dropped, 3 cm above the box's top at ``/world/labels/<entity>`` (a label on the
     box itself sits on the hand holding it); the track of both, where the object's pose is known."""
     known, half, center = box
     box_entity, label = f"/world/objects/{entity}", f"/world/labels/{entity}"
-    rec.log(
-        box_entity,
-        rr.Boxes3D(half_sizes=[half], centers=[center], colors=[OBJECT_COLOR], fill_mode=_FILL),
-        static=True,
-    )
+    rec.log(box_entity, _object_shape(obj, half, center), static=True)
     rec.log(
         label,
         # on hover only: held objects sit in the hands, where a drawn label would cover them
@@ -297,11 +303,7 @@ def _held_object(rec, entity: str, obj: ObjectMotion, traj: Trajectory, box: Obj
     sits where the robot's hand would take it; elsewhere where the recording puts it."""
     known, half, center = box
     path = f"/world/robot/objects/{entity}"
-    rec.log(
-        path,
-        rr.Boxes3D(half_sizes=[half], centers=[center], colors=[OBJECT_COLOR], fill_mode=_FILL),
-        static=True,
-    )
+    rec.log(path, _object_shape(obj, half, center), static=True)
     holder = holding_hand(traj, obj, box)
 
     def track(rows: slice) -> Iterator[Columns]:
