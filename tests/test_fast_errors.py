@@ -42,6 +42,8 @@ MISTAKES = [
     (["study", "--robots", "armar7"], "unknown robot 'armar7'"),
     (["run", "--out", "x.txt"], "--out names the recording and must end in .rrd"),
     (["run", "--out", "nope/x.rrd"], "output folder nope does not exist"),
+    (["run", "--placement", "nowhere"], "placement 'nowhere': expected one of reach, mapped"),
+    (["run", "--placement", "1,2"], "placement '1,2': expected one of"),
 ]
 
 
@@ -132,3 +134,10 @@ def test_the_registry_names_each_built_in_criterion_by_its_class():
     for name in registry.human_likeness() + registry.functional():
         cls = registry.criterion_class(name)
         assert cls.name == name and cls.functional == (name in registry.functional())
+
+
+def test_the_placement_rules_the_command_line_knows_are_the_placement_modules():
+    from hlik.problem.placement import PLACEMENTS
+    from hlik.run_spec import PLACEMENT_RULES
+
+    assert PLACEMENT_RULES == (*PLACEMENTS, "optimize")

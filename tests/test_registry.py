@@ -24,20 +24,33 @@ from hlik.solvers.jv import JVSettings
 from hlik.solvers.qp import QPSettings
 from hlik.solvers.slsqp import SLSQPSettings
 from hlik.solvers.stack_file import load_stack
+from hlik.util.errors import SettingsError
 
 ALL = registry.human_likeness() + registry.functional()
 
 
 def test_registry_lists_the_papers_criteria_once():
-    assert registry.human_likeness() == (
-        "EEA", "SOA_x", "SOA_q", "HJL", "SYN", "MIS", "MJE", "HJA_r", "SYN_r", "EEA_r", "MAN_r",
-    )  # fmt: skip
+    papers = ("EEA", "SOA_x", "SOA_q", "HJL", "SYN", "MIS", "MJE", "HJA_r", "SYN_r", "EEA_r", "MAN_r")
+    listed = registry.human_likeness()
+    assert listed[: len(papers)] == papers and len(set(listed)) == len(listed)  # the paper's first, once
     assert registry.functional() == ("fJLA", "fPOS", "fORI", "fPOS_off", "fORI_off")
     assert sum(registry.criterion_class(n).weight for n in registry.human_likeness()) == pytest.approx(1.0)
     with pytest.raises(KeyError, match="unknown criterion 'NOPE'"):
         registry.criterion_class("NOPE")
     with pytest.raises(ValueError, match="registered already"):
         registry.register(type("Clash", (Criterion,), {"name": "SYN"}))
+
+
+def test_a_built_in_is_found_by_its_name_attribute_not_its_class_name():
+    """A module listed in ``_BUILTIN`` may call its class anything: the class whose ``name`` is the
+    criterion's is found, and a module with none is named in one line."""
+    import types
+
+    module = types.ModuleType("toy_module")
+    module.ElbowDown = type("ElbowDown", (Criterion,), {"name": "ELB"})
+    assert registry._named(module, "ELB") is module.ElbowDown
+    with pytest.raises(SettingsError, match="module toy_module has no class with name = 'XYZ'"):
+        registry._named(module, "XYZ")
 
 
 @pytest.mark.parametrize("name", ALL)

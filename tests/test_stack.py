@@ -246,9 +246,15 @@ def test_a_stack_file_names_mink_tasks_and_limits_beside_hlik_s(tmp_path):
     posture = hlik.retarget(motion, robot, get_solver("mink", settings), learned=learned)
     home = lambda t: np.linalg.norm(t.q - robot.home, axis=1).mean()  # noqa: E731
     assert posture.solver == "mink" and home(posture) < home(qp)
+    # the same stack under another solver says that [mink]'s own objects go unused
+    assert stack.near_misses("mink", "armar6") == []
+    assert stack.near_misses("qp", "armar6") == [
+        f"{stack.name}: [mink] tasks and limits are used by --solver mink only, not qp"
+    ]
     for text, said in (
         ('[mink]\ntasks = [{ type = "PostureTsk", cost = 1.0 }]', "unknown mink Task 'PostureTsk'"),
-        ('[mink]\ntasks = [{ type = "PostureTask", costs = 1.0 }]', "PostureTask takes no 'costs'"),
+        ('[mink]\ntasks = [{ type = "PostureTask", costs = 1 }]', "it takes: cost, gain, lm_damping, target"),
+        ('[mink]\ntasks = [{ type = "FrameTask", target = 1.0 }]', "FrameTask takes no 'target'"),
         ('[mink]\nlimits = [{ type = "PostureTask" }]', "unknown mink Limit 'PostureTask'"),
     ):
         path.write_text(text)

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import os
+from dataclasses import replace
 from pathlib import Path
 from types import MappingProxyType
 
@@ -323,8 +324,10 @@ def test_findings_are_judged_only_on_enough_data():
     )
     assert (
         "across robots none with 1 robot" in one.deviation_text()
-        and "0.050 (paper 0.1)" in one.deviation_text()
+        and "0.050 over 4 takes (paper 0.1)" in one.deviation_text()
     )
+    two = replace(one, takes=2)  # a deviation over two takes is shown, and said to be too few
+    assert "0.050 over 2 takes (paper 0.1; too few takes to compare, needs 3)" in two.deviation_text()
 
 
 # --- Ray: a study that stops cleanly, joins a cluster, falls back (issue 30) ----------------------

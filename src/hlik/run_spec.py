@@ -21,6 +21,10 @@ from hlik.solvers.stack_file import SCENARIOS, Stack, check_criteria, load_stack
 from hlik.util.errors import HlikError, SettingsError
 from hlik.util.paths import demo_motion_path
 
+# the placement rules by name: hlik.problem.placement.PLACEMENTS and hlik run's own ``optimize``
+# (the same, tested), named here so that a misspelt rule is answered before NumPy loads
+PLACEMENT_RULES = ("reach", "mapped", "working", "shoulders", "optimize")
+
 GRADIENTS = ("analytic", "fd")
 
 
@@ -121,12 +125,18 @@ class RunSpec:
 
 
 def _check_base_pose(spec: str | None) -> None:
-    """``X,Y,YAW[,Z]`` must be finite numbers (a NaN base pose scores NaN without a word)."""
-    if spec is None or "," not in spec:
+    """A placement rule by name, or ``X,Y,YAW[,Z]`` of finite numbers (a NaN base pose scores NaN
+    without a word), checked before the placement module (NumPy, SciPy) loads."""
+    if spec is None or spec in PLACEMENT_RULES:
         return
     try:
         values = [float(v) for v in spec.split(",")]
     except ValueError:
-        return  # placement_from_spec says what it expects
-    if len(values) in (3, 4) and not all(math.isfinite(v) for v in values):
+        values = []
+    if len(values) not in (3, 4):
+        raise HlikError(
+            f"placement {spec!r}: expected one of {', '.join(PLACEMENT_RULES[:-1])}, X,Y,YAW (m, m, deg), "
+            "X,Y,YAW,Z (and the base height, m) or, in hlik run, optimize (hlik.placement_search in Python)"
+        )
+    if not all(math.isfinite(v) for v in values):
         raise HlikError(f"--placement {spec}: X, Y, YAW (and Z) must be finite numbers (m, m, deg, m)")

@@ -178,9 +178,9 @@ def run(
         )
         if layout not in LAYOUTS:
             raise HlikError(f"unknown layout {layout!r}; choose one of: {', '.join(LAYOUTS)}")
+        spec.check()  # names, numbers and files before the heavy imports below
         if out is not None:  # a named recording is checked now; the default's name needs the robot
             check_outputs(out, out.with_suffix(".npz"), _inputs(spec), create=False, force=force)
-        spec.check()  # names, numbers and files before the heavy imports below
         from hlik.export import WRITERS
         from hlik.robot.model import load_robot
 
@@ -192,6 +192,14 @@ def run(
     _report(result, rrd, npz, corpus_source)
     if export is not None:
         _export(result, npz, export)
+
+
+def _motion_stem(path: Path) -> str:
+    """The motion's part of a default file name: its stem, and its format where it is not MMM
+    (``demo_pour_wipe.bvh`` -> ``demo_pour_wipe_bvh``), so that takes differing only in format do not
+    share files."""
+    suffix = path.suffix.lower().lstrip(".")
+    return path.stem if suffix in ("xml", "") else f"{path.stem}_{suffix}"
 
 
 def _run_and_write(spec: RunSpec, robot: Robot, rrd: Path, layout: str) -> RunResult:
@@ -214,7 +222,7 @@ def _run_and_write(spec: RunSpec, robot: Robot, rrd: Path, layout: str) -> RunRe
 def _outputs(spec: RunSpec, robot: Robot, out: Path | None, force: bool, tag: str) -> tuple[Path, Path]:
     """The recording and trajectory files of a run, checked: ``--out`` or the default name under
     ``recordings/`` (created), refused where they exist without ``--force`` or name an input."""
-    rrd = out or Path("recordings") / f"{file_stem(spec.motion_path.stem, robot.name, tag)}.rrd"
+    rrd = out or Path("recordings") / f"{file_stem(_motion_stem(spec.motion_path), robot.name, tag)}.rrd"
     npz = rrd.with_suffix(".npz")
     check_outputs(rrd, npz, _inputs(spec), create=out is None, force=force)
     return rrd, npz

@@ -92,13 +92,13 @@ def study(
         listed = load_approaches(approaches or PAPER)
         n_cells = len(plan(files, names, listed, seconds))
         console.print(
-            f"study: {len(files)} takes x {len(names)} robots x {len(listed)} approaches = "
-            f"{n_cells} cells -> {out}/",
+            f"study: {_count(files, 'take')} x {_count(names, 'robot')} x {_count(listed, 'approach')} = "
+            f"{_count(range(n_cells), 'cell')} -> {out}/",
             soft_wrap=True,  # a path is never broken across lines
         )
         with progress_bar() as progress:
             task = progress.add_task("cells", total=n_cells)
-            advance = lambda o: progress.update(task, advance=1, description=o.cell.file_name[:48])  # noqa: E731
+            advance = lambda o: progress.update(task, advance=1, description=_cell_name(o.cell))  # noqa: E731
             corpus = resolve_corpus(corpus)[0]  # --corpus demo: the bundled demo
             try:
                 result = run_study(files, names, listed, out, seconds, workers, address, advance, corpus)
@@ -142,7 +142,10 @@ def _takes(folder: Path) -> list[Path]:
 
 
 def _report(result: StudyResult) -> None:
-    """The failed cells, the five best approaches per scenario and where the files are."""
+    """The failed cells, the five best approaches per scenario and where the files are; a warning
+    where the rankings or the metric rest on less than a finding needs."""
+    from hlik.study.report import MIN_CELLS, MIN_FRAMES, MIN_TAKES
+
     failed = [o for o in result.outcomes if o.error]
     for o in failed:
         console.print(
@@ -150,15 +153,28 @@ def _report(result: StudyResult) -> None:
             highlight=False,
             soft_wrap=True,
         )
+    small = []
     for ranking in result.rankings:
-        table = Table(
-            "approach", "m_hl", "m_f", "m_hl,f", title=f"best approaches, {ranking.scenario} scenario"
-        )
+        title = f"best approaches, {ranking.scenario} scenario"
+        table = Table("approach", "m_hl", "m_f", "m_hl,f", "cells", title=title)
         for r in ranking.rows[:5]:
-            table.add_row(r["approach"], f"{r['m_hl']:.3f}", f"{r['m_f']:.3f}", f"{r['m_hl_f']:.3f}")
+            row = (f"{r['m_hl']:.3f}", f"{r['m_f']:.3f}", f"{r['m_hl_f']:.3f}", str(r["cells"]))
+            table.add_row(r["approach"], *row)
         console.print(table)
+        fewest = min((int(r["cells"]) for r in ranking.rows), default=0)
+        if fewest < MIN_CELLS:
+            small.append(
+                f"the {ranking.scenario} ranking rests on {fewest} cell(s) per approach (a finding needs "
+                f"{MIN_CELLS}): an order, not a result"
+            )
+    corr = result.correlation
+    if corr.takes < MIN_TAKES or corr.frames < MIN_FRAMES:
+        small.append(
+            f"{result.metric_file} comes from {corr.takes} take(s), {corr.frames} frames (a finding needs "
+            f"{MIN_TAKES} takes and {MIN_FRAMES} frames): a try of the pipeline, not a metric to score with"
+        )
     reused = sum(o.reused for o in result.outcomes)
-    warn(list(result.notes))
+    warn([*result.notes, *small])
     if failed:
         warn(
             [
@@ -177,3 +193,15 @@ def _report(result: StudyResult) -> None:
 def _default_takes() -> Path:
     """The shared KIT takes beside the checkout (or under HLIK_DATA), else the bundled demo."""
     return shared_takes() or demo_motion_path()
+
+
+def _count(items, noun: str) -> str:
+    """``"1 robot"``, ``"3 robots"``, ``"2 approaches"``."""
+    n = len(items)
+    return f"{n} {noun}" if n == 1 else f"{n} {noun}{'es' if noun.endswith('ch') else 's'}"
+
+
+def _cell_name(cell) -> str:
+    """A finished cell as the progress line shows it: robot and approach whole, the take cut short."""
+    take = cell.take.stem if len(cell.take.stem) <= 24 else cell.take.stem[:23] + "…"
+    return f"{take} {Path(cell.robot).stem} {cell.approach.key}"

@@ -82,8 +82,26 @@ def criterion_class(name: str) -> type[Criterion]:
         raise UnknownNameError(f"unknown criterion {name!r}; choose from: {', '.join(human_likeness())}")
     if name not in _CRITERIA:
         module, _ = _BUILTIN[name]
-        _CRITERIA[name] = getattr(import_module(f"hlik.criteria.{module}"), name)
+        _CRITERIA[name] = _named(import_module(f"hlik.criteria.{module}"), name)
     return _CRITERIA[name]
+
+
+def _named(module, name: str) -> type[Criterion]:
+    """The class in ``module`` whose ``name`` is ``name`` (the class of that name first).
+
+    Raises:
+        SettingsError: the module has none, naming the module and what it has.
+    """
+    classes = [c for c in vars(module).values() if isinstance(c, type) and getattr(c, "name", None) == name]
+    own = getattr(module, name, None)
+    if isinstance(own, type) and own in classes:
+        return own
+    if classes:
+        return classes[0]
+    raise SettingsError(
+        f"criterion {name!r}: module {module.__name__} has no class with name = {name!r} "
+        "(registry._BUILTIN names its module)"
+    )
 
 
 def criterion(name: str, robot: object, learned: object | None = None) -> Criterion:

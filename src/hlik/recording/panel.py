@@ -20,15 +20,16 @@ def summary(traj: Trajectory, robot: Robot, evaluation: Evaluation | None, info:
 
     d = traj.diagnostics
     rate = 1.0 / traj.period
+    source = traj.motion.source
+    named = Path(source).name if source else traj.motion.name  # the file, as the CLI names runs
     settings = {
-        "motion": f"{traj.motion.name} ({traj.n_frames} frames, {rate:.0f} Hz)",
+        "motion": f"{named} ({traj.n_frames} frames, {rate:.0f} Hz)",
         "robot": f"{robot.title} ({robot.name})",
         "solver": traj.solver,
         "placement": traj.placement.method,
         **{k: str(v) for k, v in info.items()},
     }
-    source = traj.motion.source
-    title = Path(source).stem if source else traj.motion.name  # the file, as the CLI names runs
+    title = Path(source).stem if source else traj.motion.name
     lines = [f"### {title} on {robot.name}, {traj.solver}", ""]
     table = []
     if evaluation is not None:  # the scores first: what the panel is opened for

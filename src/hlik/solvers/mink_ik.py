@@ -34,6 +34,7 @@ from hlik.solvers.frames import (
 )
 from hlik.solvers.limits import MotionLimits
 from hlik.solvers.mink_tasks import CriterionTask, HandBandLimit, SelfCollisionLimit, StateCache
+from hlik.solvers.preview import PathTask
 from hlik.solvers.settings import LimitSettings
 
 
@@ -123,6 +124,9 @@ class MinkSolver:
                 collision.set_box(box)
             tasks = self.first_tasks if k == 0 else self.tasks
             self._aim(tasks, hands, sample)
+            for task in tasks:
+                if isinstance(task, PathTask):
+                    task.at(k)
             for limit in band:
                 limit.set_tasks(tasks)
             missed = False  # a step gave way on the caller's limits

@@ -42,7 +42,9 @@ def check_specs(specs: object, kind: str) -> tuple[Mapping[str, object], ...]:
                 f"{kind}: unknown mink {base.__name__} {name!r}; choose from: {', '.join(known)}"
             )
         params = set(inspect.signature(cls).parameters) - {"model"}
-        extra = set(spec) - params - {"type", "target"}
+        if issubclass(cls, mink.PostureTask) and not issubclass(cls, mink.DampingTask):
+            params.add("target")  # the configuration it pulls toward (default: the robot's home)
+        extra = set(spec) - params - {"type"}
         if extra:
             raise SettingsError(
                 f"{kind}: {name} takes no {sorted(extra)[0]!r}; it takes: {', '.join(sorted(params))}"

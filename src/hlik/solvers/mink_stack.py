@@ -21,7 +21,7 @@ import mink
 from hlik.problem.problem import Problem
 from hlik.solvers.base import ConfiguredSolver, SolverResult
 from hlik.solvers.mink_specs import build
-from hlik.solvers.qp import build_solver
+from hlik.solvers.qp import solve as solve_qp
 from hlik.solvers.settings import MinkSettings
 
 
@@ -32,7 +32,7 @@ def solve(
     robot = problem.robot
     tasks = [t for t in (build(robot, s) for s in settings.tasks) if isinstance(t, mink.Task)]
     limits = [lim for lim in (build(robot, s) for s in settings.limits) if isinstance(lim, mink.Limit)]
-    return build_solver(robot, settings, problem.learned, tasks, limits, progress)(problem)
+    return solve_qp(problem, settings, progress, tasks, limits)
 
 
 def mink_solver(

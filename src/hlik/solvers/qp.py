@@ -12,6 +12,7 @@ stops when no joint moves more than ``tol`` in a step or after ``max_iter`` step
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from dataclasses import replace
 
 import mink
 import numpy as np
@@ -27,8 +28,10 @@ from hlik.problem.problem import Problem
 from hlik.robot.model import Robot
 from hlik.solvers.base import ConfiguredSolver, SolverResult
 from hlik.solvers.frames import FIRST_FRAME_SCENARIO, first_frame_terms
+from hlik.solvers.limits import MotionLimits
 from hlik.solvers.mink_ik import MinkSolver
 from hlik.solvers.mink_tasks import CriterionTask, HandBandLimit, StateCache
+from hlik.solvers.preview import PathTask, feasible_path
 from hlik.solvers.settings import QPSettings
 
 
@@ -110,9 +113,24 @@ def solve(
     problem: Problem,
     settings: QPSettings = QPSettings(),
     progress: Callable[[int], None] | None = None,
+    tasks: Sequence[mink.Task] = (),
+    limits: Sequence[mink.Limit] = (),
 ) -> SolverResult:
-    """Retarget frame by frame (:func:`build_solver`); diagnostics count the QP steps per frame."""
-    return build_solver(problem.robot, settings, problem.learned, progress=progress)(problem)
+    """Retarget frame by frame (:func:`build_solver`, with ``tasks`` and ``limits`` added);
+    diagnostics count the QP steps per frame. With ``settings.preview_cost`` the take is solved
+    twice (:mod:`hlik.solvers.preview`): first without the acceleration and torque limits, then
+    with every limit and a :class:`~hlik.solvers.preview.PathTask` toward the nearest path that
+    keeps them; the diagnostics are the second pass's."""
+    robot, learned = problem.robot, problem.learned
+    if settings.preview_cost <= 0 or problem.n_frames < 3:
+        return build_solver(robot, settings, learned, tasks, limits, progress)(problem)
+    half = (lambda k: progress(k // 2)) if progress else None
+    free = replace(settings, acceleration_limits=False, torque_limits=False, preview_cost=0.0)
+    unlimited = build_solver(robot, free, learned, tasks, limits, half)(problem)
+    path = feasible_path(unlimited.q, MotionLimits.of(robot, settings), problem.dt)
+    second = (lambda k: progress((problem.n_frames + k) // 2)) if progress else None
+    preview = PathTask(robot.model, path, settings.preview_cost)
+    return build_solver(robot, settings, learned, [*tasks, preview], limits, second)(problem)
 
 
 def qp_solver(

@@ -99,6 +99,9 @@ class QPSettings(SolverSettings):
             (:class:`~hlik.criteria.joints.TrunkUpright`; 0: none; robots without them: no term).
         elbow_cost: Weight per metre of an elbow behind the shoulders' frontal plane by more than
             ``elbow_allowance`` (m) (:class:`~hlik.criteria.elbows.ElbowsAhead`; 0: none).
+        preview_cost: Weight per rad toward the look-ahead path (:mod:`hlik.solvers.preview`:
+            the take retargeted without acceleration and torque limits, then the nearest path that
+            keeps them, started early; 0: none, one pass). Above 0 the take is solved twice.
         damping: Levenberg-Marquardt damping of every step.
         max_iter: QP steps per frame at most (the first frame gets ten times more).
         tol: A frame has converged when no joint moves more than this in a step, rad.
@@ -134,6 +137,7 @@ class QPSettings(SolverSettings):
     elbow_allowance: float = 0.02
     position_band: float = 0.0
     orientation_band: float = 0.0
+    preview_cost: float = 0.0
     damping: float = 1e-6
     max_iter: int = 20
     tol: float = 1e-4

@@ -71,18 +71,24 @@ class Stack:
         return cls(criteria=self.criteria, scenario=self.scenario, gamma=gamma, **table)
 
     def near_misses(self, solver: str, robot: str) -> list[str]:
-        """Notes on the ``[<solver>.robot.<name>]`` tables a run of ``robot`` leaves unused although
-        their name is close to its own (``armar7`` for ``armar6``): likely a typo. Tables for other
-        robots are not refused when the stack is read, since a robot's name can be anything."""
+        """Notes on what a run of ``solver`` on ``robot`` leaves unused: ``[<solver>.robot.<name>]``
+        tables whose name is close to the robot's (``armar7`` for ``armar6``: likely a typo; tables
+        for other robots are not refused when the stack is read, since a robot's name can be
+        anything), and ``[mink]``'s own tasks and limits under another solver."""
         layers = ("qp", solver) if solver == "mink" else (solver,)
         # another bundled robot's table is meant for it (armar6 beside armar3), not a typo
         names = {n for s in layers for n in self.robots.get(s, {})} - {robot, *available_robots()}
-        return [
+        notes = [
             f"{self.name}: [{s}.{ROBOT_TABLE}.{n}] is not used for robot {robot!r}: a typo of {robot!r}?"
             for s in layers
             for n in sorted(self.robots.get(s, {}))
             if n in names and difflib.get_close_matches(n, [robot], n=1, cutoff=0.75)
         ]
+        own = [k for k in ("tasks", "limits") if self.solvers.get("mink", {}).get(k)]
+        if own and solver != "mink":  # mink's own objects are what --solver mink adds to the QP
+            unused = " and ".join(own)
+            notes.append(f"{self.name}: [mink] {unused} are used by --solver mink only, not {solver}")
+        return notes
 
 
 def settings_class(solver: str) -> type:

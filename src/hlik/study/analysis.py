@@ -68,15 +68,18 @@ class Correlation:
     takes: int = 0
     frames: int = 0
 
-    def deviation_text(self) -> str:
-        """The deviations across robots and motions against the paper's, or why there is none."""
+    def deviation_text(self, min_takes: int = 3) -> str:
+        """The deviations across robots and motions against the paper's, with how many robots and
+        takes they come from, or why there is none; below ``min_takes`` takes the motions'
+        deviation is said to be too few to compare."""
         robots = (
-            f"{self.mad_robots:.3f} (paper 0.126)"
+            f"{self.mad_robots:.3f} over {len(self.per_robot)} robots (paper 0.126, 3 robots)"
             if math.isfinite(self.mad_robots)
             else f"none with {len(self.per_robot)} robot (paper 0.126)"
         )
+        few = f"; too few takes to compare, needs {min_takes}" if self.takes < min_takes else ""
         motions = (
-            f"{self.mad_motions:.3f} (paper 0.1)"
+            f"{self.mad_motions:.3f} over {self.takes} takes (paper 0.1{few})"
             if math.isfinite(self.mad_motions)
             else f"none with {self.takes} take (paper 0.1)"
         )

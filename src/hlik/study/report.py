@@ -205,7 +205,7 @@ def write_report(
         "<h1>hlik study</h1>",
         _table(["", ""], [(k, v) for k, v in summary.items()]),
         f"<p>Correlation over {corr.takes} take{'s' * (corr.takes != 1)}, {corr.frames} frames: "
-        f"{html.escape(corr.deviation_text())}.</p>",
+        f"{html.escape(corr.deviation_text(MIN_TAKES))}.</p>",
         _img(figs[0]),
         _img(figs[1]),
         "<h2>Derived metric vs Table III</h2>",

@@ -1,0 +1,90 @@
+"""The QP's look-ahead (hlik.solvers.preview): a joint path within the speed, acceleration and stop
+limits, nearest to the unlimited solution, that starts a motion before its target does; and the QP
+with it keeps every limit of the frame box."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from hlik import load_robot
+from hlik.solvers.limits import MotionLimits
+from hlik.solvers.preview import HEADROOM, PathTask, feasible_path
+from hlik.solvers.settings import QPSettings
+
+DT = 0.01
+
+
+@pytest.fixture(scope="module")
+def panda():
+    return load_robot("dual_panda")
+
+
+def _rates(path: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    return np.abs(np.diff(path, axis=0)) / DT, np.abs(np.diff(path, 2, axis=0)) / DT**2
+
+
+@settings(max_examples=10, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), scale=st.floats(0.005, 0.08))
+def test_the_path_keeps_the_stops_speeds_and_accelerations(panda, seed, scale):
+    """Any joint motion, however fast (a random walk of up to 8 rad/s steps): the path keeps the
+    stops with their margin, and its speed and acceleration stay within the limits (the fit within
+    :data:`HEADROOM` of them, the spline between its knots a little above)."""
+    rng = np.random.default_rng(seed)
+    q = panda.home + np.cumsum(rng.normal(scale=scale, size=(300, panda.dof)), axis=0)
+    limits = MotionLimits.of(panda, QPSettings())
+    path = feasible_path(q, limits, DT)
+    assert path.shape == q.shape
+    assert np.all(path >= limits.inner_lower - 1e-9) and np.all(path <= limits.inner_upper + 1e-9)
+    speed, acceleration = _rates(path)
+    assert np.all(speed <= limits.velocity + 1e-6)
+    assert np.all(acceleration <= limits.acceleration + 1e-6)
+
+
+def test_a_slow_motion_is_its_own_path(panda):
+    """Well inside every limit, the nearest path is the motion itself (to the spline's error)."""
+    t = np.arange(200) * DT
+    q = panda.home + 0.1 * np.sin(2 * np.pi * 0.5 * t)[:, None]
+    path = feasible_path(q, MotionLimits.of(panda, QPSettings()), DT)
+    assert np.abs(path - q).max() < 1e-3
+
+
+def test_the_path_starts_a_fast_move_before_its_target_does(panda):
+    """A joint told to jump 0.5 rad at 1 s: a frame-by-frame solver starts at 1 s; the path, fitted
+    over the whole take, is already moving before, and arrives no later than its limits allow."""
+    q = np.tile(panda.home, (200, 1))
+    q[100:, 0] += 0.5
+    limits = MotionLimits.of(panda, QPSettings())
+    path = feasible_path(q, limits, DT)
+    assert path[90, 0] > panda.home[0] + 0.01  # moving 0.1 s before the jump
+    assert abs(path[-1, 0] - q[-1, 0]) < 1e-3  # and there in the end
+    # half the jump is passed about at the jump: the least-squares path is symmetric about it
+    assert 95 <= np.argmax(path[:, 0] > panda.home[0] + 0.25) <= 105
+    assert HEADROOM < 1.0
+
+
+def test_the_path_task_aims_at_its_frame(panda):
+    path = np.tile(panda.home, (5, 1)) + np.arange(5)[:, None] * 0.01
+    task = PathTask(panda.model, path, cost=3.0)
+    for k in (0, 3):
+        task.at(k)
+        np.testing.assert_allclose(task.target_q, path[k])
+
+
+def test_the_qp_with_look_ahead_keeps_every_limit(cut_take, panda):
+    """Both passes on 1.5 s of the Cut take: the second keeps the frame box (acceleration, torque,
+    stops) in every frame, with the hands on target."""
+    from hlik.executable import controller_checks
+    from hlik.human.load import load_motion
+    from hlik.retarget import retarget
+    from hlik.solvers.qp import qp_solver
+
+    motion = load_motion(cut_take, rate=100.0).crop(1.0, 2.5)
+    traj = retarget(motion, panda, qp_solver(QPSettings(preview_cost=3.0)))
+    checks = controller_checks(traj, panda)
+    assert checks.acceleration_ratio.max() <= 1.0 + 1e-6
+    assert checks.torque_ratio.max() <= 1.0 + 1e-6
+    assert not np.any(traj.diagnostics.failed)
+    assert np.median(np.linalg.norm(traj.tcp_pos - traj.targets.pos, axis=-1)) < 0.01
