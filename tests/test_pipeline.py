@@ -166,3 +166,28 @@ def test_the_problem_learns_once_and_only_for_criteria_that_learn(monkeypatch):
     settings = load_stack("ee_pose").with_criteria(["EEA"]).settings("qp")
     with pytest.raises(SettingsError, match="criterion EEA is built from learned swivel"):
         get_solver("qp", settings)(bare)
+
+
+def test_a_callers_limit_runs_through_the_whole_pipeline(cut_take):
+    """``hlik.run(spec, limits=[...])``: a user's ``mink.Limit`` (ARMAR-6's left elbow at most 0.6
+    rad, kept the braking margin v^2 / (2 a) inside as the README says) holds in every frame of the
+    run ``hlik run`` would make; JM, which keeps no limits, refuses one."""
+    from mink.limits import Constraint, Limit
+
+    robot = load_robot("armar6")
+    j, bound = robot.joint_names.index("ArmL6_Elb2"), 0.6
+    margin = robot.velocity_limit[j] ** 2 / (2.0 * robot.acceleration_limit[j])
+
+    class Below(Limit):
+        def compute_qp_inequalities(self, configuration, dt):
+            g = np.zeros((1, robot.dof))
+            g[0, j] = 1.0
+            return Constraint(G=g, h=np.array([bound - margin - configuration.q[j]]))
+
+    spec = RunSpec(motion=cut_take, robot="armar6", solver="qp", span=(1.0, 2.0))
+    free = run(spec, robot=robot).trajectory
+    held = run(spec, robot=robot, limits=[Below()]).trajectory
+    assert free.q[:, j].max() > bound  # the premise: without it the elbow passes the bound
+    assert held.q[:, j].max() <= bound + 1e-6
+    with pytest.raises(HlikError, match="keeps no limits"):
+        get_solver("jm", limits=[Below()])

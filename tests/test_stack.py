@@ -144,9 +144,7 @@ def test_stack_slsqp_settings_are_the_papers():
 
     assert load_stack("paper_opt").settings("slsqp") == SLSQPSettings()  # the paper's OPT
     tuned = load_stack("ee_pose").settings("slsqp")
-    paper = replace(
-        tuned, criterion_cost=10.0, max_eval=100, orientation_cost=9.0, elbow_cost=0.0, elbow_allowance=0.02
-    )
+    paper = replace(tuned, criterion_cost=10.0, max_eval=100, orientation_cost=9.0, elbow_cost=0.0)
     assert paper == SLSQPSettings()
     relative = load_stack("relative_pose").settings("slsqp")
     assert relative == SLSQPSettings.relative()

@@ -156,7 +156,11 @@ def test_a_tiny_study_writes_cells_metric_and_report(tiny):
     expected |= {"converged", "failed", "solve_time", "collision", "speed_ratio", "scenario", "solver"}
     for who in ("robot", "subject"):
         expected |= {f"lean_{who}"}
-        expected |= {f"{m}_{side}_{who}" for m in ("elbow_front", "hand_front", "swivel") for side in SIDES}
+        expected |= {
+            f"{m}_{side}_{who}"
+            for m in ("elbow_front", "hand_front", "wrist_front", "swivel")
+            for side in SIDES
+        }
     assert set(table.schema.names) == expected
     assert np.all(np.isfinite(table.column("lean_robot").to_numpy()))
     assert table.num_rows == 101 and np.all(np.isfinite(table.column("h_SYN").to_numpy()))

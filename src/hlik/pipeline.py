@@ -12,7 +12,7 @@ stage outputs to :func:`run` instead of recomputing them.
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 
 from hlik.criteria.learned import Learned, learn
@@ -136,11 +136,13 @@ def run(
     motion: HumanMotion | None = None,
     learned: Learned | None = None,
     placement: Placement | None = None,
+    limits: Sequence[object] = (),
 ) -> RunResult:
     """Run ``spec``: read, scale, learn, place, solve, evaluate.
 
     ``robot``, ``motion`` (already read and scaled: :func:`read_motion`), ``learned`` and
     ``placement``: stage outputs a caller shares between runs, used instead of computing them.
+    ``limits``: a caller's ``mink.Limit``\\ s, kept by the solver (QP, mink, JV, SLSQP) beside its own.
     ``progress(stage, done, total)`` is told each stage, and each solved frame.
 
     Raises:
@@ -166,7 +168,7 @@ def run(
     step = (lambda k: progress(stage, k + 1, motion.n_frames)) if progress else None
     _say(progress, stage, 0, motion.n_frames)
     wall, cpu = time.perf_counter(), time.process_time()
-    traj = retarget(motion, robot, get_solver(spec.solver, settings, step), placement, learned)
+    traj = retarget(motion, robot, get_solver(spec.solver, settings, step, limits), placement, learned)
     wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
     _say(progress, "evaluating the criteria")
     ev = evaluate(traj, robot, learned, scenario=scenario, metric=metric)

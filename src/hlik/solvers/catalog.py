@@ -7,13 +7,13 @@ CLI does before anything heavy loads) costs no import of MuJoCo, mink or NLopt.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from importlib import import_module
 from types import MappingProxyType
 from typing import TYPE_CHECKING
 
-from hlik.util.errors import UnknownNameError
+from hlik.util.errors import SettingsError, UnknownNameError
 from hlik.util.tomlfile import did_you_mean
 
 if TYPE_CHECKING:
@@ -99,14 +99,26 @@ def solver_spec(name: str) -> SolverSpec:
 
 
 def get_solver(
-    name: str, settings: object | None = None, progress: Callable[[int], None] | None = None
+    name: str,
+    settings: object | None = None,
+    progress: Callable[[int], None] | None = None,
+    limits: Sequence[object] = (),
 ) -> Solver:
     """The solver called ``name`` with ``settings`` (its settings class; default: the defaults);
-    ``progress(k)`` is called after each frame ``k``. The learned pieces of its criteria come with
-    the problem (:func:`hlik.problem.build_problem`).
+    ``progress(k)`` is called after each frame ``k``; ``limits``: a caller's ``mink.Limit``\\ s,
+    kept by every optimising solver. The learned pieces of its criteria come with the problem
+    (:func:`hlik.problem.build_problem`).
 
     Raises:
         UnknownNameError: unknown name.
+        SettingsError: ``limits`` for a solver that keeps none (JM maps joint angles).
     """
-    factory = check_solver(name).factory
-    return factory(settings, progress) if settings is not None else factory(progress=progress)
+    spec = check_solver(name)
+    if limits and not spec.tracks_targets:
+        raise SettingsError(f"solver {name} maps joint angles and keeps no limits of a caller's")
+    extra = {"limits": tuple(limits)} if limits else {}
+    return (
+        spec.factory(settings, progress, **extra)
+        if settings is not None
+        else spec.factory(progress=progress, **extra)
+    )

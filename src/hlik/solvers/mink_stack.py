@@ -14,7 +14,8 @@ come from :func:`hlik.solvers.qp.build_solver`: without extra tasks and limits, 
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
+from functools import partial
 
 import mink
 
@@ -26,17 +27,24 @@ from hlik.solvers.settings import MinkSettings
 
 
 def solve(
-    problem: Problem, settings: MinkSettings = MinkSettings(), progress: Callable[[int], None] | None = None
+    problem: Problem,
+    settings: MinkSettings = MinkSettings(),
+    progress: Callable[[int], None] | None = None,
+    limits: Sequence[mink.Limit] = (),
 ) -> SolverResult:
-    """Retarget frame by frame with the QP's stack and the settings' mink objects on mink."""
+    """Retarget frame by frame with the QP's stack, the settings' mink objects and a caller's
+    ``limits`` on mink."""
     robot = problem.robot
     tasks = [t for t in (build(robot, s) for s in settings.tasks) if isinstance(t, mink.Task)]
-    limits = [lim for lim in (build(robot, s) for s in settings.limits) if isinstance(lim, mink.Limit)]
-    return solve_qp(problem, settings, progress, tasks, limits)
+    own = [lim for lim in (build(robot, s) for s in settings.limits) if isinstance(lim, mink.Limit)]
+    return solve_qp(problem, settings, progress, tasks, [*own, *limits])
 
 
 def mink_solver(
-    settings: MinkSettings = MinkSettings(), progress: Callable[[int], None] | None = None
+    settings: MinkSettings = MinkSettings(),
+    progress: Callable[[int], None] | None = None,
+    limits: Sequence[mink.Limit] = (),
 ) -> ConfiguredSolver:
-    """The QP's stack on mink with ``settings``' own tasks and limits, for :func:`hlik.retarget.retarget`."""
-    return ConfiguredSolver("mink", solve, settings, progress)
+    """The QP's stack on mink with ``settings``' own tasks and limits (and a caller's), for
+    :func:`hlik.retarget.retarget`."""
+    return ConfiguredSolver("mink", partial(solve, limits=limits) if limits else solve, settings, progress)

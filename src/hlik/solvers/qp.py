@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import replace
+from functools import partial
 
 import mink
 import numpy as np
@@ -136,6 +137,8 @@ def solve(
 def qp_solver(
     settings: QPSettings = QPSettings(),
     progress: Callable[[int], None] | None = None,
+    limits: Sequence[mink.Limit] = (),
 ) -> ConfiguredSolver:
-    """The QP solver with the given settings, for :func:`hlik.retarget.retarget`."""
-    return ConfiguredSolver("qp", solve, settings, progress)
+    """The QP solver with the given settings (and a caller's ``mink.Limit``\\ s), for
+    :func:`hlik.retarget.retarget`."""
+    return ConfiguredSolver("qp", partial(solve, limits=limits) if limits else solve, settings, progress)

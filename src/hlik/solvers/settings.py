@@ -137,7 +137,8 @@ class QPSettings(SolverSettings):
     elbow_allowance: float = 0.02
     position_band: float = 0.0
     orientation_band: float = 0.0
-    preview_cost: float = 0.0
+    # the look-ahead (issue 28; tasks/ee_pose.toml has the measurements)
+    preview_cost: float = 3.0
     damping: float = 1e-6
     max_iter: int = 20
     tol: float = 1e-4
