@@ -5,7 +5,8 @@
 to ``d2f408f`` the QP assembled its own problem for daqp; this prints both on the same frames: CPU
 time per frame (each robot's takes in one subprocess per checkout, the two alternating, median of
 the repeats), steps per frame, m_hl, m_f, median fPOS and fORI, failed frames, and the largest
-joint-angle difference between the two. Run by hand: ``python bench/mink_qp.py [--against d2f408f]
+joint-angle difference between the two, with the look-ahead off (one pass, as the revisions
+before it). Run by hand: ``python bench/mink_qp.py [--against d2f408f]
 [--robots armar3,armar6,dual_panda] [--takes 2] [--seconds 2]``; the last line is ``ratio
 mink/revision: X.XX`` (median CPU per frame; issue 29's target 1.3).
 """
@@ -43,7 +44,11 @@ from hlik.solvers.stack_file import load_stack
 name, criteria, seconds, takes = sys.argv[1], sys.argv[2].split(","), float(sys.argv[3]), sys.argv[4:]
 robot = hlik.load_robot(name)
 learned = learn(robot)
-solver = get_solver("qp", load_stack("ee_pose").with_criteria(criteria).settings("qp"))
+settings = load_stack("ee_pose").with_criteria(criteria).settings("qp")
+if hasattr(settings, "preview_cost"):  # one pass, frame by frame, as every revision before it
+    import dataclasses
+    settings = dataclasses.replace(settings, preview_cost=0.0)
+solver = get_solver("qp", settings)
 cpu = frames = 0
 out = {"steps": [], "m_hl": [], "m_f": [], "fpos": [], "fori": [], "failed": 0, "q": []}
 for take in takes:

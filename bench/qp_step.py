@@ -105,6 +105,7 @@ def main() -> None:
     # mink's stack has the position stops only: hlik's without the frame box's speed, acceleration,
     # torque rows and stop margin for the ratio, with them (and with collisions) for their cost
     plain = QPSettings(
+        preview_cost=0.0,  # frame by frame, as mink: the look-ahead's two passes are not a step's cost
         criteria=("SYN", "HJA_r"),
         self_collision=False,
         max_iter=MAX_ITER,
