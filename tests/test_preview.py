@@ -88,3 +88,17 @@ def test_the_qp_with_look_ahead_keeps_every_limit(cut_take, panda):
     assert checks.torque_ratio.max() <= 1.0 + 1e-6
     assert not np.any(traj.diagnostics.failed)
     assert np.median(np.linalg.norm(traj.tcp_pos - traj.targets.pos, axis=-1)) < 0.01
+
+
+def test_the_path_fit_prints_nothing(panda, capfd):
+    """OSQP's C library writes to stdout for some settings, and its Python side warns on sparse
+    arrays: neither may reach a user's terminal or a piped summary."""
+    import warnings
+
+    q = np.tile(panda.home, (120, 1))
+    q[60:, 3] += 0.4
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        feasible_path(q, MotionLimits.of(panda, QPSettings()), DT)
+    out, err = capfd.readouterr()
+    assert out == "" and err == ""

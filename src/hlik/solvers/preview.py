@@ -95,9 +95,9 @@ def _control_points(
     hessian = (basis.T @ basis + 1e-9 * sp.eye(count)).tocsc()  # the end points touch few frames
     solver = osqp.OSQP()
     solver.setup(
-        P=sp.triu(hessian, format="csc"),
+        P=sp.csc_matrix(sp.triu(hessian)),  # OSQP takes scipy's csc_matrix, not its sparse arrays
         q=-(basis.T @ q),
-        A=sp.vstack(rows, format="csc"),
+        A=sp.csc_matrix(sp.vstack(rows)),
         l=lower,
         u=upper,
         verbose=False,
