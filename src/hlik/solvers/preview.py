@@ -106,7 +106,7 @@ def _control_points(
         max_iter=50000,
         polishing=False,  # OSQP prints to stdout where polishing finds no active set
     )
-    result = solver.solve()
+    result = solver.solve(raise_error=False)  # the status is checked below
     if result.x is None or not np.all(np.isfinite(result.x)):
         raise RuntimeError(f"no joint path within the limits (OSQP: {result.info.status})")
     return np.clip(result.x, *stops)
