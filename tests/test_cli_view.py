@@ -509,7 +509,8 @@ def test_run_says_which_corpus_the_criteria_came_from(corpus, short_take, tmp_pa
     assert f"criteria learned from: {corpus} (1 file, from HLIK_CORPUS)" in result.stdout
     demo = invoke(*args, env={"HLIK_CORPUS": "demo", "COLUMNS": "200"})
     assert demo.exit_code == 0, demo.output  # another corpus, another default name: no --force needed
-    assert "criteria learned from: the bundled demo (demo_pour_wipe.xml)" in demo.stdout
+    said = "criteria learned from: the bundled demo (demo_pour_wipe.xml, chosen by HLIK_CORPUS)"
+    assert said in demo.stdout
     assert "warning: criteria learned" not in result.stderr + demo.stderr  # chosen, not fallen back on
     missing = invoke(*args, env={"HLIK_CORPUS": str(tmp_path / "none")})
     one_line_error(missing, "none", "HLIK_CORPUS", "corpus")

@@ -360,8 +360,10 @@ def _stack_label(stem: str, name: str) -> str:
 
 
 def _corpus_label(corpus: Path | None, files: Sequence[str], source: str = "") -> str:
-    """``demo (demo_pour_wipe.xml)`` or ``DIR (n files, from HLIK_CORPUS)``."""
+    """``the bundled demo (demo_pour_wipe.xml, chosen by HLIK_CORPUS)``, ``... (demo_pour_wipe.xml,
+    no corpus of recorded motion found)`` or ``DIR (n files, from HLIK_CORPUS)``."""
     if corpus is None:
-        return f"the bundled demo ({', '.join(files)})"
+        why = f"chosen by {source}" if source else "no corpus of recorded motion found"
+        return f"the bundled demo ({', '.join(files)}, {why})"
     count = f"{len(files)} file" + ("s" if len(files) != 1 else "")
     return f"{corpus} ({count}" + (f", from {source})" if source else ")")
