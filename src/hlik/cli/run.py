@@ -188,7 +188,7 @@ def run(
             raise HlikError(f"unknown --export format {export!r}; choose one of: {', '.join(WRITERS)}")
         r = load_robot(robot)
         rrd, npz = _outputs(spec, r, out, force, _tag(spec, r, layout, corpus_source))
-        result = _run_and_write(spec, r, rrd, layout)
+        result = _run_and_write(spec, r, rrd, npz, layout)
     _report(result, rrd, npz, corpus_source)
     if export is not None:
         _export(result, npz, export)
@@ -202,7 +202,7 @@ def _motion_stem(path: Path) -> str:
     return path.stem if suffix in ("xml", "") else f"{path.stem}_{suffix}"
 
 
-def _run_and_write(spec: RunSpec, robot: Robot, rrd: Path, layout: str) -> RunResult:
+def _run_and_write(spec: RunSpec, robot: Robot, rrd: Path, npz: Path, layout: str) -> RunResult:
     """The pipeline's run with a progress line on stderr, then the recording and the trajectory."""
     from hlik.pipeline import run as run_pipeline
 
@@ -214,7 +214,7 @@ def _run_and_write(spec: RunSpec, robot: Robot, rrd: Path, layout: str) -> RunRe
 
         result = run_pipeline(spec, show, robot=robot)
         bar.update(task, description=f"writing {rrd}", total=None)
-        npz, info = rrd.with_suffix(".npz"), _settings(result, layout)
+        info = _settings(result, layout)
         write_outputs(npz, rrd, result.trajectory, robot, layout, evaluation=result.evaluation, info=info)
     return result
 

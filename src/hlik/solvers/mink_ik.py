@@ -123,10 +123,7 @@ class MinkSolver:
             if collision is not None:
                 collision.set_box(box)
             tasks = self.first_tasks if k == 0 else self.tasks
-            self._aim(tasks, hands, sample)
-            for task in tasks:
-                if isinstance(task, PathTask):
-                    task.at(k)
+            self._aim(tasks, hands, sample, k)
             for limit in band:
                 limit.set_tasks(tasks)
             missed = False  # a step gave way on the caller's limits
@@ -151,8 +148,9 @@ class MinkSolver:
         return track(problem, solve_frame, self.progress, MotionLimits.of(robot, self.motion_limits))
 
     @staticmethod
-    def _aim(tasks: Sequence[mink.Task], hands: dict[str, int], sample: Sample) -> None:
-        """Point the hands' ``FrameTask``\\ s at the frame's targets; give the criteria its context."""
+    def _aim(tasks: Sequence[mink.Task], hands: dict[str, int], sample: Sample, k: int) -> None:
+        """Point the hands' ``FrameTask``\\ s at frame ``k``'s targets and a ``PathTask`` at its
+        configuration; give the criteria its context."""
         for task in tasks:
             if isinstance(task, mink.FrameTask) and task.frame_name in hands:
                 i = hands[task.frame_name]
@@ -160,3 +158,5 @@ class MinkSolver:
                 task.set_target(mink.SE3.from_rotation_and_translation(rot, sample.target_pos[0, i]))
             elif isinstance(task, CriterionTask):
                 task.set_sample(sample)
+            elif isinstance(task, PathTask):
+                task.at(k)

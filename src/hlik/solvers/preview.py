@@ -10,7 +10,7 @@ speed: its datasheet accelerations, not its joint ranges, hold the hand back.
 The look-ahead sees the whole take at once. The QP first retargets it without the acceleration
 and torque limits (what the arm would do if it could), then :func:`feasible_path` finds, joint by
 joint, the path nearest to that one which keeps the stops (with their margin), speed, acceleration
-and jerk limits, starting from rest: a least-squares fit over all frames, which starts a swing
+and jerk limits: a least-squares fit over all frames, which starts a swing
 before the target does and brakes before it stops. The QP then retargets the take again, with
 every limit and a :class:`PathTask` pulling toward that path beside its own terms, so the hands,
 the criteria and the limits of every frame (torques, self-collision) still decide.
