@@ -488,7 +488,7 @@ def test_the_default_corpus_is_remembered_else_the_shared_takes_else_the_demo(
 
 def test_piped_output_never_breaks_a_path(short_take, tmp_path, monkeypatch):
     """At 80 columns (piped), the recording, trajectory and corpus lines and the commands to copy
-    each hold their whole path on one line."""
+    each hold their whole path on one line; the summary's rows are not wrapped or padded either."""
     monkeypatch.chdir(tmp_path)
     out = tmp_path / ("a_folder_with_a_long_name_" * 3) / "and_a_recording_whose_name_is_long_too.rrd"
     out.parent.mkdir()
@@ -499,6 +499,9 @@ def test_piped_output_never_breaks_a_path(short_take, tmp_path, monkeypatch):
     for path in (out, out.with_suffix(".npz")):
         assert any(str(path) in line for line in lines), (path, result.stdout)
     assert any(line.startswith("open with: rerun ") and str(out) in line for line in lines)
+    assert not [line for line in lines if line.endswith(" ")]
+    controller = [line for line in lines if line.lstrip().startswith("controller")]
+    assert len(controller) == 1 and controller[0].rstrip().endswith("at the acceleration limits)")
 
 
 def test_run_says_which_corpus_the_criteria_came_from(corpus, short_take, tmp_path, monkeypatch):

@@ -87,6 +87,19 @@ MOTION_FILES = ("*.xml", "*.bvh", "*.toml")
 # Output is text, not markup: file, motion and object names print as written ("[red]take.xml").
 console = Console(markup=False)
 
+
+def print_table(table) -> None:
+    """A table on stdout: laid out to the terminal's width there; piped, each row on one line with
+    no padding after it, so that a path or a command is never broken and ``grep`` finds a row."""
+    if console.is_terminal:
+        console.print(table)
+        return
+    wide = Console(markup=False, width=100_000, color_system=None, highlight=False)
+    with wide.capture() as captured:
+        wide.print(table)
+    console.file.write("".join(f"{line.rstrip()}\n" for line in captured.get().splitlines()))
+
+
 MotionArg = Annotated[
     Path | None,
     typer.Argument(

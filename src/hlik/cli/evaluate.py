@@ -18,6 +18,7 @@ from hlik.cli.app import (
     check_trajectory_file,
     console,
     one_line,
+    print_table,
     resolve_corpus,
     trajectory_and_robot,
     warn,
@@ -57,5 +58,5 @@ def evaluate(
     table = Table("criterion", "mean h", "x0", "m", title=title)
     for k in x0:
         table.add_row(k, f"{ev.h[k].mean():.4g}", f"{x0[k]:g}", f"{ev.m[k]:.3f}")
-    console.print(table)
+    print_table(table)
     console.print(f"m_hl = {ev.m_hl:.3f}   m_f ({scenario}) = {ev.m_f:.3f}   m_hl,f = {ev.m_hl_f:.3f}")

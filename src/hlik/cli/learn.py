@@ -13,6 +13,7 @@ from hlik.cli.app import (
     console,
     counting,
     one_line,
+    print_table,
     resolve_corpus,
     warn,
 )
@@ -53,7 +54,7 @@ def learn(
             )
         folder = cache_dir()
         remembered = remember_corpus(corpus) if given is not None and corpus is not None else None
-    console.print(table)
+    print_table(table)
     console.print(f"cache: {folder}", soft_wrap=True)
     if remembered is not None:
         console.print(

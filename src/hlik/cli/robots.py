@@ -21,6 +21,7 @@ from hlik.cli.app import (
     MotionArg,
     console,
     one_line,
+    print_table,
     warn,
 )
 
@@ -35,7 +36,7 @@ def robots() -> None:
     for r in summaries:
         arms = " + ".join(map(str, r.arms))
         table.add_row(r.name, r.title, str(r.dof), arms, ", ".join(r.extra_joints) or "-", str(r.unlimited))
-    console.print(table)
+    print_table(table)
 
 
 def info(motion: MotionArg = None) -> None:
@@ -59,7 +60,7 @@ def info(motion: MotionArg = None) -> None:
         "markers", f"{len(m.markers)}" + (f": {', '.join(sorted(m.markers)[:8])} ..." if m.markers else "")
     )
     table.add_row("objects", ", ".join(m.objects) or "-")
-    console.print(table)
+    print_table(table)
 
 
 def calibrate(
@@ -121,7 +122,7 @@ def _print_calibration(r: Robot, cal: Calibration) -> None:
             off,
             f"{cal.score[m.joint]:.2f}",
         )
-    console.print(table)
+    print_table(table)
     res = ", ".join(f"{s} {np.degrees(v):.1f}°" for s, v in cal.residual.items())
     console.print(f"hand-frame error of the mapped default pose: {res}")
     offsets = [(m.joint, m.offset) for m in cal.mapping.joints if m.offset is not None]

@@ -26,6 +26,7 @@ from hlik.cli.app import (
     MotionArg,
     console,
     one_line,
+    print_table,
     progress_bar,
     resolve_corpus,
     warn,
@@ -234,7 +235,7 @@ def _report(result: RunResult, rrd: Path, npz: Path, corpus_source: str) -> None
     # Lines naming a file or a command are printed whole, each on its own line: a table cell would
     # break a path at the console's width (80 columns when piped).
     console.print(f"{spec.motion_path.stem} -> {result.robot.name} ({traj.solver})", soft_wrap=True)
-    console.print(run_summary(traj, result.motion, result.solve_seconds, ev))
+    print_table(run_summary(traj, result.motion, result.solve_seconds, ev))
     size = lambda path: f"{path.stat().st_size / 1e6:.1f} MB"  # noqa: E731
     console.print(f"recording: {rrd} ({size(rrd)})", soft_wrap=True)
     console.print(f"trajectory: {npz} ({size(npz)})", soft_wrap=True)

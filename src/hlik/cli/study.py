@@ -17,6 +17,7 @@ from hlik.cli.app import (
     console,
     one_line,
     print_error,
+    print_table,
     progress_bar,
     resolve_corpus,
     warn,
@@ -160,7 +161,7 @@ def _report(result: StudyResult) -> None:
         for r in ranking.rows[:5]:
             row = (f"{r['m_hl']:.3f}", f"{r['m_f']:.3f}", f"{r['m_hl_f']:.3f}", str(r["cells"]))
             table.add_row(r["approach"], *row)
-        console.print(table)
+        print_table(table)
         fewest = min((int(r["cells"]) for r in ranking.rows), default=0)
         if fewest < MIN_CELLS:
             small.append(
