@@ -44,6 +44,7 @@ MISTAKES = [
     (["run", "--out", "nope/x.rrd"], "output folder nope does not exist"),
     (["run", "--placement", "nowhere"], "placement 'nowhere': expected one of reach, mapped"),
     (["run", "--placement", "1,2"], "placement '1,2': expected one of"),
+    (["run", "--export", "parquet"], "unknown --export format 'parquet'"),
 ]
 
 
@@ -58,6 +59,27 @@ def test_a_mistake_is_answered_before_any_heavy_import(tmp_path, args, message):
     assert len(err.splitlines()) == 1 and err.startswith("error: ") and message in err, err
     assert heavy == "", f"imported {heavy} before the error"
     assert not any(tmp_path.iterdir()), "nothing is written"
+
+
+@pytest.mark.parametrize("robot", ["armar6", "dual_panda", "armar3"])
+def test_an_existing_default_output_is_answered_before_any_heavy_import(tmp_path, robot):
+    """The default name needs the robot's description (its name, placement and scale), not its
+    model: an earlier run's recording is found before MuJoCo loads, and kept."""
+    earlier = tmp_path / "recordings" / f"demo_pour_wipe_{robot}_jm.rrd"
+    earlier.parent.mkdir()
+    earlier.write_bytes(b"earlier")
+    done = subprocess.run(
+        [sys.executable, "-c", PROBE, "run", "--robot", robot, "--solver", "jm"],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    heavy, _, code = done.stdout.strip().splitlines()[-1].partition("|")
+    assert code == "2" and heavy == "", (done.stdout, done.stderr)
+    said = "exists; pass --force to replace it, or --out to write elsewhere"
+    assert done.stderr.strip() == f"error: {earlier.relative_to(tmp_path)}: {said}"
+    assert earlier.read_bytes() == b"earlier" and [p.name for p in earlier.parent.iterdir()] == [earlier.name]
 
 
 STACK_VALUES = [
@@ -141,3 +163,10 @@ def test_the_placement_rules_the_command_line_knows_are_the_placement_modules():
     from hlik.run_spec import PLACEMENT_RULES
 
     assert PLACEMENT_RULES == (*PLACEMENTS, "optimize")
+
+
+def test_the_export_formats_the_command_line_knows_are_the_writers():
+    from hlik.export import WRITERS
+    from hlik.run_spec import EXPORT_FORMATS
+
+    assert EXPORT_FORMATS == tuple(WRITERS)

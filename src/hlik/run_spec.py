@@ -26,6 +26,8 @@ from hlik.util.paths import demo_motion_path
 PLACEMENT_RULES = ("reach", "mapped", "working", "shoulders", "optimize")
 
 GRADIENTS = ("analytic", "fd")
+# the export formats (hlik.export.WRITERS, tested equal), named here for the same reason
+EXPORT_FORMATS = ("csv", "mcap", "lerobot")
 
 
 @dataclass(frozen=True)

@@ -33,6 +33,7 @@ from hlik.cli.app import (
 )
 from hlik.cli.outputs import check_outputs, file_stem, write_outputs
 from hlik.cli.summary import run_summary
+from hlik.robot.files import RobotDefaults, robot_defaults
 
 RobotOpt = Annotated[
     str, typer.Option("--robot", "-r", help="Robot name (see `hlik robots`) or path of a robot .toml.")
@@ -157,7 +158,7 @@ def run(
 ) -> None:
     """Retarget a motion to a robot; write a Rerun recording and the trajectory (.npz) beside it."""
     from hlik.recording.layout import LAYOUTS
-    from hlik.run_spec import RunSpec
+    from hlik.run_spec import EXPORT_FORMATS, RunSpec
 
     with one_line():
         corpus, corpus_source = resolve_corpus(corpus)
@@ -180,15 +181,14 @@ def run(
         if layout not in LAYOUTS:
             raise HlikError(f"unknown layout {layout!r}; choose one of: {', '.join(LAYOUTS)}")
         spec.check()  # names, numbers and files before the heavy imports below
-        if out is not None:  # a named recording is checked now; the default's name needs the robot
-            check_outputs(out, out.with_suffix(".npz"), _inputs(spec), create=False, force=force)
-        from hlik.export import WRITERS
+        if export is not None and export not in EXPORT_FORMATS:
+            raise HlikError(f"unknown --export format {export!r}; choose one of: {', '.join(EXPORT_FORMATS)}")
+        # the outputs before the heavy imports too: the default name needs the robot's description only
+        defaults = robot_defaults(robot)
+        rrd, npz = _outputs(spec, defaults, out, force, _tag(spec, defaults, layout, corpus_source))
         from hlik.robot.model import load_robot
 
-        if export is not None and export not in WRITERS:
-            raise HlikError(f"unknown --export format {export!r}; choose one of: {', '.join(WRITERS)}")
         r = load_robot(robot)
-        rrd, npz = _outputs(spec, r, out, force, _tag(spec, r, layout, corpus_source))
         result = _run_and_write(spec, r, rrd, npz, layout)
     _report(result, rrd, npz, corpus_source)
     if export is not None:
@@ -220,7 +220,9 @@ def _run_and_write(spec: RunSpec, robot: Robot, rrd: Path, npz: Path, layout: st
     return result
 
 
-def _outputs(spec: RunSpec, robot: Robot, out: Path | None, force: bool, tag: str) -> tuple[Path, Path]:
+def _outputs(
+    spec: RunSpec, robot: RobotDefaults, out: Path | None, force: bool, tag: str
+) -> tuple[Path, Path]:
     """The recording and trajectory files of a run, checked: ``--out`` or the default name under
     ``recordings/`` (created), refused where they exist without ``--force`` or name an input."""
     rrd = out or Path("recordings") / f"{file_stem(_motion_stem(spec.motion_path), robot.name, tag)}.rrd"
@@ -299,7 +301,7 @@ def _inputs(spec: RunSpec) -> list:
     return [spec.motion_path, spec.metric, spec.robot, spec.stack, tasks_dir() / f"{spec.stack}.toml"]
 
 
-def _tag(spec: RunSpec, robot: Robot, layout: str, corpus_source: str) -> str:
+def _tag(spec: RunSpec, robot: RobotDefaults, layout: str, corpus_source: str) -> str:
     """:func:`_run_tag` of a run: the spec's choices that differ from the defaults (the corpus
     folder where this command chose one: ``--corpus`` or ``$HLIK_CORPUS``; never the demo)."""
     from hlik.util.paths import tasks_dir

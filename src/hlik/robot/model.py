@@ -13,7 +13,8 @@ import mujoco
 import numpy as np
 
 from hlik.human.kinematics import human_model
-from hlik.robot.files import NAME, robot_toml
+from hlik.robot.files import PLACEMENT_RULES as PLACEMENT_RULES  # re-exported
+from hlik.robot.files import description_defaults, robot_toml
 from hlik.robot.mapping import JointMapping
 from hlik.robot.model_file import COLLISION_GROUP as COLLISION_GROUP  # re-exported: models' geom groups
 from hlik.robot.model_file import VISUAL_GROUP as VISUAL_GROUP
@@ -31,8 +32,6 @@ SIDES = ("left", "right")
 # Per arm: joint centres, the tracking TCP, and the frame whose velocity manipulability MAN^r reads
 # (``{side}_{Robot.manipulability_site}``; robots/README.md).
 SITES = ("shoulder", "elbow", "wrist", "tcp", "manipulability")
-# Placement rules a robot description may name as its default (hlik.problem.placement).
-PLACEMENT_RULES = ("reach", "mapped", "shoulders")
 
 
 @dataclass(frozen=True, eq=False)
@@ -214,13 +213,6 @@ TABLE_KEYS = {
 }
 
 
-def _name(path: Path, desc: dict) -> str:
-    name = _text(path, desc, "name", path.stem)
-    if not NAME.fullmatch(name):
-        raise RobotError(f"{path}: name {name!r} must be letters, digits, '_' or '-' (it names files)")
-    return name
-
-
 def _check_keys(path: Path, desc: dict) -> None:
     """Refuse a key the description does not know, naming its table and the closest known key."""
     if problem := unknown_key(desc, KEYS, "the top-level table"):
@@ -235,7 +227,7 @@ def _check_keys(path: Path, desc: dict) -> None:
 
 def _build(path: Path, desc: dict, need_mapping: bool = True) -> Robot:
     _check_keys(path, desc)
-    name = _name(path, desc)
+    defaults = description_defaults(path, desc)
     source = _text(path, desc, "model", desc.get("mjcf"))  # ``mjcf`` is the key's former name
     arms, extra = _arm_joints(path, desc)
     listed = [j for s in SIDES for j in arms[s]] + list(extra)
@@ -274,7 +266,7 @@ def _build(path: Path, desc: dict, need_mapping: bool = True) -> Robot:
             f"derive it with `hlik calibrate {path} --write`"
         )
     return Robot(
-        name=name,
+        name=defaults.name,
         title=_text(path, desc, "title", path.stem),
         model_file=mjcf,
         model=model,
@@ -288,9 +280,9 @@ def _build(path: Path, desc: dict, need_mapping: bool = True) -> Robot:
         **limits,
         manipulability_site=manip_site,
         manipulability_joints=manip_joints,
-        placement=_placement_rule(path, desc),
+        placement=defaults.placement,
         description=path,
-        subject_scale=_subject_scale(path, desc),
+        subject_scale=defaults.subject_scale,
     )
 
 
@@ -478,23 +470,6 @@ def _check_unlimited(path: Path, desc: dict, names: tuple[str, ...], limited: np
     if free - listed:
         wrong = ", ".join(sorted(free - listed))
         raise RobotError(f"{path}: unlimited_joints leaves out {wrong}, which the model leaves unlimited")
-
-
-def _subject_scale(path: Path, desc: dict) -> float | str:
-    value = desc.get("subject_scale", 1.0)
-    if value == "auto":
-        return value
-    number = isinstance(value, int | float) and not isinstance(value, bool)
-    if not (number and math.isfinite(value) and value > 0):
-        raise RobotError(f'{path}: subject_scale must be "auto" or a positive number, got {value!r}')
-    return float(value)
-
-
-def _placement_rule(path: Path, desc: dict) -> str:
-    rule = str(desc.get("placement", "reach"))
-    if rule not in PLACEMENT_RULES:
-        raise RobotError(f"{path}: placement {rule!r} is not one of {', '.join(PLACEMENT_RULES)}")
-    return rule
 
 
 def _joint_limits(
