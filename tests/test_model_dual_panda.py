@@ -41,15 +41,18 @@ LIMITS = [
 ]
 MENAGERIE_HOME = [0.0, 0.0, 0.0, -1.57079, 0.0, 1.57079, -0.7853]
 
-# Table I (kinematics.md §9): MMM s_x, s_y, s_z, e_x, e_z, w_x, w_z (= MMM Wy) -> joints 1..7.
+# Table I (kinematics.md §9): MMM s_x, s_y, s_z, e_x, e_z, w_x, w_z (= MMM Wy) -> joints 1..7, with
+# joint 7's b a half-turn below the printed 3pi/4: hlik's TCP frame is turned by it (robots/dual_panda.toml
+# says why; test_tcp_half_turn checks that the hand is the same).
+B7_PRINTED = 3 * PI / 4
 TABLE_I = {
     "left": (
         [-1, 1, -1, -1, -1, -1, 0],
-        [0, -PI / 2, PI / 2, 0, -PI / 2, PI, 3 * PI / 4],
+        [0, -PI / 2, PI / 2, 0, -PI / 2, PI, B7_PRINTED - PI],
     ),
     "right": (
         [1, 1, -1, -1, -1, 1, 0],
-        [0, PI / 2, PI / 2, 0, PI / 2, PI, 3 * PI / 4],
+        [0, PI / 2, PI / 2, 0, PI / 2, PI, B7_PRINTED - PI],
     ),
 }
 MMM_JOINTS = {
@@ -270,3 +273,38 @@ def test_home_is_table_i_of_relaxed_pose():
         for k in range(7):
             want = a[k] * mmm[k] + b[k]
             assert cfg["home"][f"{s}_joint{k + 1}"] == pytest.approx(want, abs=1e-15)
+
+
+@pytest.mark.parametrize("side", SIDES)
+def test_tcp_half_turn(model, side):
+    """Joint 7 at b (-pi/4) and at Table I's printed 3pi/4 put the TCP at the same place with its frame
+    turned a half-turn about the approach axis, and the Franka Hand's geometry (palm and two finger
+    boxes) on the same places: the half-turn changes nothing a gripper could tell."""
+    q = np.zeros(model.nq)
+    for k, v in enumerate(TABLE_I[side][1]):
+        q[model.jnt_qposadr[jid(model, f"{side}_joint{k + 1}")]] = v
+    printed = q.copy()
+    printed[model.jnt_qposadr[jid(model, f"{side}_joint7")]] = B7_PRINTED
+    data = mujoco.MjData(model)
+    tcp = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, f"{side}_tcp")
+    hand = [
+        mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, f"{side}_{g}")
+        for g in ("palm", "finger_a", "finger_b")
+    ]
+
+    def pose(qpos):
+        data.qpos[:] = qpos
+        mujoco.mj_kinematics(model, data)
+        # a box is the same box turned a half-turn about any of its axes: compare |R|
+        boxes = sorted(
+            (tuple(np.round(data.geom_xpos[g], 9)), tuple(np.round(np.abs(data.geom_xmat[g]), 9)))
+            for g in hand
+        )
+        return data.site_xpos[tcp].copy(), data.site_xmat[tcp].reshape(3, 3).copy(), boxes
+
+    p0, r0, boxes0 = pose(q)
+    p1, r1, boxes1 = pose(printed)
+    np.testing.assert_allclose(p0, p1, atol=1e-12)
+    np.testing.assert_allclose(r0.T @ r1, np.diag([-1.0, -1.0, 1.0]), atol=1e-12)
+    assert [b[0] for b in boxes0] == pytest.approx([b[0] for b in boxes1], abs=1e-9)
+    assert [b[1] for b in boxes0] == pytest.approx([b[1] for b in boxes1], abs=1e-9)

@@ -17,9 +17,11 @@ from hlik.robot.files import available_robots
 from hlik.robot.model import SITES, load_robot
 
 PI = np.pi
-TABLE_I_PANDA = {  # paper Table I, 2-Panda (printed values)
-    "left": ((-1, 1, -1, -1, -1, -1, 0), (0, -PI / 2, PI / 2, 0, -PI / 2, PI, 3 * PI / 4)),
-    "right": ((1, 1, -1, -1, -1, 1, 0), (0, PI / 2, PI / 2, 0, PI / 2, PI, 3 * PI / 4)),
+# paper Table I, 2-Panda (printed values), but joint 7's b a half-turn below the printed 3pi/4: hlik's
+# TCP frame is turned by it (robots/dual_panda.toml; test_model_dual_panda.test_tcp_half_turn)
+TABLE_I_PANDA = {
+    "left": ((-1, 1, -1, -1, -1, -1, 0), (0, -PI / 2, PI / 2, 0, -PI / 2, PI, -PI / 4)),
+    "right": ((1, 1, -1, -1, -1, 1, 0), (0, PI / 2, PI / 2, 0, PI / 2, PI, -PI / 4)),
 }
 
 
