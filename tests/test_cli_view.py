@@ -11,6 +11,7 @@ import re
 import shutil
 import subprocess
 import sys
+import time
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -355,6 +356,27 @@ def test_learning_and_reachability_report_progress(short_take, tmp_path):
     sampled: list[tuple[int, int]] = []
     reachability_map(robot, cache=False, n_samples=2500, progress=lambda k, n: sampled.append((k, n)))
     assert sampled == [(1000, 2500), (2000, 2500), (2500, 2500)]
+
+
+def test_a_piped_stage_that_reports_no_count_is_still_heard(monkeypatch, capsys):
+    """Piped, a long stage prints a plain line after QUIET_FOR and then every EVERY seconds even
+    when nothing updates it (reading a take, learning without a count); none once it has ended."""
+    from hlik.cli.app import _PlainProgress
+
+    monkeypatch.setattr(_PlainProgress, "QUIET_FOR", 0.2)
+    monkeypatch.setattr(_PlainProgress, "EVERY", 0.5)
+    with _PlainProgress() as bar:
+        task = bar.add_task("learning the criteria")
+        time.sleep(1.5)  # due at 0.2, 0.7, 1.2 s
+        bar.update(task, description="placing", total=4, completed=3)
+        time.sleep(0.8)
+    time.sleep(0.6)
+    lines = capsys.readouterr().err.splitlines()
+    learning = [line for line in lines if line.startswith("hlik: learning the criteria (")]
+    assert len(learning) >= 2, lines
+    placing = [line for line in lines if line.startswith("hlik: placing (3/4, ")]
+    assert placing and lines[-len(placing) :] == placing and len(placing) <= 2, lines
+    assert len(lines) == len(learning) + len(placing), lines
 
 
 # --- 4. startup --------------------------------------------------------------------------------

@@ -4,6 +4,7 @@ in one line on stderr and exit code 2."""
 from __future__ import annotations
 
 import sys
+import threading
 import time
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
@@ -203,43 +204,60 @@ def trajectory_and_robot(path: Path) -> tuple[Trajectory, Robot]:
 
 class _PlainProgress:
     """Progress for a stderr that is no terminal (piped, logged): a plain line ``hlik: STAGE (k/n,
-    T s)`` once a stage has run :data:`QUIET_FOR` seconds, then at most every :data:`EVERY`
-    seconds, so that a cold cache (a reachability map sampled, criteria learned) is not a silent
-    minute, while quick stages and errors print nothing more."""
+    T s)`` once a stage has run :data:`QUIET_FOR` seconds, then every :data:`EVERY` seconds, so
+    that a cold cache (a reachability map sampled, criteria learned) is not a silent minute, while
+    quick stages and errors print nothing more. A ticker thread says it: a stage that reports no
+    count (reading, learning) is heard too."""
 
     QUIET_FOR, EVERY = 2.0, 10.0
 
     def __init__(self) -> None:
         self.tasks: dict[int, dict[str, Any]] = {}
+        self._done, self._lock = threading.Event(), threading.Lock()
+        self._ticker = threading.Thread(target=self._tick, name="hlik-progress", daemon=True)
 
     def __enter__(self) -> _PlainProgress:
+        self._ticker.start()
         return self
 
     def __exit__(self, *exc: object) -> None:
-        return None
+        self._done.set()
+        self._ticker.join()
 
     def add_task(self, description: str, total: float | None = None, **_: object) -> int:
-        self.tasks[len(self.tasks)] = {"description": description, "total": total, "completed": 0}
-        self._restart(len(self.tasks) - 1)
-        return len(self.tasks) - 1
+        with self._lock:
+            task = len(self.tasks)
+            self.tasks[task] = {"description": description, "total": total, "completed": 0} | self._fresh()
+        return task
 
-    def _restart(self, task: int) -> None:
+    def _fresh(self) -> dict[str, float]:
         now = time.monotonic()
-        self.tasks[task] |= {"since": now, "said": now - self.EVERY + self.QUIET_FOR}
+        return {"since": now, "said": now - self.EVERY + self.QUIET_FOR}
 
     def update(self, task: int, advance: float | None = None, **fields: Any) -> None:
-        state = self.tasks[task]
-        if "description" in fields and fields["description"] != state["description"]:
-            self._restart(task)
-        state.update({k: v for k, v in fields.items() if k in ("description", "total", "completed")})
-        if advance:
-            state["completed"] = (state["completed"] or 0) + advance
-        now = time.monotonic()
-        if now - state["said"] >= self.EVERY:
-            state["said"] = now
-            count = f"{int(state['completed'] or 0)}/{int(state['total'])}, " if state["total"] else ""
-            line = f"hlik: {state['description']} ({count}{now - state['since']:.0f} s)"
-            Console(stderr=True, soft_wrap=True, highlight=False, markup=False).print(line)
+        with self._lock:
+            state = self.tasks[task]
+            if "description" in fields and fields["description"] != state["description"]:
+                state |= self._fresh()
+            state.update({k: v for k, v in fields.items() if k in ("description", "total", "completed")})
+            if advance:
+                state["completed"] = (state["completed"] or 0) + advance
+
+    def _tick(self) -> None:
+        while not self._done.wait(0.25):
+            with self._lock:
+                now = time.monotonic()
+                due = [state for state in self.tasks.values() if now - state["said"] >= self.EVERY]
+                for state in due:
+                    state["said"] = now
+                lines = [self._line(state, now) for state in due]
+            for line in lines:
+                Console(stderr=True, soft_wrap=True, highlight=False, markup=False).print(line)
+
+    @staticmethod
+    def _line(state: dict[str, Any], now: float) -> str:
+        count = f"{int(state['completed'] or 0)}/{int(state['total'])}, " if state["total"] else ""
+        return f"hlik: {state['description']} ({count}{now - state['since']:.0f} s)"
 
 
 def progress_bar(spinner: bool = False):
