@@ -71,6 +71,7 @@ def run(
     placement: str | None = None,
     stack_name: str | None = None,
     scale: str | None = None,
+    time_scale: float = 1.0,
 ) -> dict:
     robot = hlik.load_robot(robot_name)
     solver, *criteria = approach.split("+")
@@ -91,6 +92,7 @@ def run(
             placement=placement,
             scale=scale,
             span=(1.0, 1.0 + seconds),
+            time_scale=time_scale,
             settings=overrides,
         )
         result = run_pipeline(spec, robot=robot, learned=learned)
@@ -160,6 +162,9 @@ def main() -> None:
     parser.add_argument("--takes", type=int, default=8, help="use the first N takes")
     parser.add_argument("--scale", default=None, help="subject scale: auto or a factor (default the robot's)")
     parser.add_argument("--set", action="append", default=[], help="override a setting: name=value")
+    parser.add_argument(
+        "--time-scale", type=float, default=1.0, help="play each take this many times as long"
+    )
     args = parser.parse_args()
     overrides = {k: _setting(v) for k, v in (item.split("=", 1) for item in args.set)}
     takes = sorted((DATA / "kit_bimanual").glob("*.xml"))[: args.takes]
@@ -168,7 +173,8 @@ def main() -> None:
     where = args.placement or "the robot's"
     scale = args.scale or "the robot's"
     print(
-        f"{len(takes)} takes x {args.seconds:g} s, scenario {args.scenario}, placement {where}, scale {scale}"
+        f"{len(takes)} takes x {args.seconds:g} s, scenario {args.scenario}, placement {where}, "
+        f"scale {scale}, played {args.time_scale:g} times as long"
     )
     head = f"{'robot':11s} {'approach':18s} {'m_hl':>6s} {'m_f':>6s} {'m_hl,f':>6s} "
     cols = (
@@ -209,6 +215,7 @@ def main() -> None:
                 where,
                 args.stack,
                 args.scale,
+                args.time_scale,
             )
             print(
                 f"{robot_name:11s} {approach:18s} {r['m_hl']:6.3f} {r['m_f']:6.3f} {r['m_hl_f']:6.3f} "

@@ -85,6 +85,8 @@ VARIANTS = {
     "rate": [0.0, 50.0],
     "layout": ["overlay"],
     "corpus": [Path("/data/kit")],
+    "span": [(1.0, 3.0)],
+    "time_scale": [2.0, 0.5],
 }
 
 

@@ -45,6 +45,8 @@ MISTAKES = [
     (["run", "--placement", "nowhere"], "placement 'nowhere': expected one of reach, mapped"),
     (["run", "--placement", "1,2"], "placement '1,2': expected one of"),
     (["run", "--export", "parquet"], "unknown --export format 'parquet'"),
+    (["run", "--time-scale", "0"], "--time-scale must be 0.1 to 10"),
+    (["run", "--time-scale", "nan"], "--time-scale must be 0.1 to 10"),
 ]
 
 

@@ -93,6 +93,24 @@ def test_resample_round_trip(takes):
     assert up.objects[name].position.shape == (up.n_frames, 3)
 
 
+@pytest.mark.parametrize(("factor", "every"), [(2.0, (2, 1)), (0.5, (1, 2)), (3.0, (3, 1))])
+def test_retimed_plays_the_same_poses_at_the_same_rate(takes, factor, every):
+    """Time scaling: the same poses at times t0 + factor (t - t0), at the take's own rate, so every
+    joint speed is divided by the factor; 1 changes nothing. ``every``: the frames of the new and
+    the old motion that fall at the same pose (the spline passes through the old frames)."""
+    m = load_motion(takes[1], rate=100.0).crop(0.0, 2.0)
+    slow = m.retimed(factor)
+    assert slow.rate == pytest.approx(m.rate)
+    assert slow.duration == pytest.approx(factor * m.duration, abs=0.01)
+    new, old = slow.joints[:: every[0]], m.joints[:: every[1]]
+    n = min(len(new), len(old))
+    assert n > 50 and np.allclose(new[:n], old[:n], atol=1e-9)
+    assert np.allclose(slow.root_rotation[:: every[0]][:n], m.root_rotation[:: every[1]][:n], atol=1e-9)
+    speed = lambda motion: np.abs(np.diff(motion.joints, axis=0)).max() * motion.rate  # noqa: E731
+    assert speed(slow) == pytest.approx(speed(m) / factor, rel=0.1)
+    assert m.retimed(1.0) is m
+
+
 def test_resampled_jerk_has_no_steps(takes):
     # 10 Hz takes at 100 Hz: a cubic's jerk jumps at every recorded frame by about its own size
     # (MJE scores that as a barcode); the quintic's changes between frames by under half its maximum

@@ -74,8 +74,9 @@ class RunResult:
 
 
 def read_motion(spec: RunSpec, robot: Robot) -> HumanMotion:
-    """The spec's motion: read, resampled to ``spec.rate``, cropped to ``spec.span``, the subject
-    scaled by ``spec.scale`` (the robot's rule if None)."""
+    """The spec's motion: read, resampled to ``spec.rate``, cropped to ``spec.span``, played
+    ``spec.time_scale`` times as long, the subject scaled by ``spec.scale`` (the robot's rule if
+    None)."""
     motion = load_motion(spec.motion_path, rate=spec.rate or None)
     if spec.span is not None:
         start, stop = spec.span
@@ -85,7 +86,7 @@ def read_motion(spec: RunSpec, robot: Robot) -> HumanMotion:
             kept = f"{cut[0]:g}-{cut[1]:g} s"
             note = f"{spec.motion_path}: span {start:g}-{stop:g} s cut to {kept} (the take is shorter)"
             motion = replace(motion, notes=(*motion.notes, note))
-    return scale_subject(motion, robot, spec.scale)
+    return scale_subject(motion.retimed(spec.time_scale), robot, spec.scale)
 
 
 def place(

@@ -26,6 +26,8 @@ from hlik.util.paths import demo_motion_path
 PLACEMENT_RULES = ("reach", "mapped", "working", "shoulders", "optimize")
 
 GRADIENTS = ("analytic", "fd")
+# how much slower (or faster) a run may play a motion than recorded
+TIME_SCALE_RANGE = (0.1, 10.0)
 # the export formats (hlik.export.WRITERS, tested equal), named here for the same reason
 EXPORT_FORMATS = ("csv", "mcap", "lerobot")
 
@@ -47,6 +49,8 @@ class RunSpec:
         rate: Resample the motion to this rate, Hz; 0 keeps the recorded rate.
         span: ``(start, stop)`` s after the first frame to keep (start at most half the take,
             stop at most its end); None: all of it.
+        time_scale: Play the (cropped) motion this many times as long, 2: at half its speed
+            (:data:`TIME_SCALE_RANGE`); 1: as recorded.
         corpus: Corpus folder the criteria are learned from (None: ``learn``'s default).
         metric: Metric file with the unified metric's weights and x0 (None: Table III).
         gradients: SLSQP's gradients, ``analytic`` or ``fd`` (finite differences, as the paper).
@@ -63,6 +67,7 @@ class RunSpec:
     scale: float | str | None = None
     rate: float = 100.0
     span: tuple[float, float] | None = None
+    time_scale: float = 1.0
     corpus: Path | None = None
     metric: Path | None = None
     gradients: str = "analytic"
@@ -101,6 +106,12 @@ class RunSpec:
             raise SettingsError(
                 f"--rate must be positive, {low:g} to {high:g} Hz (or 0 to keep the motion's rate), "
                 f"got {self.rate:g}"
+            )
+        low, high = TIME_SCALE_RANGE
+        if not (low <= self.time_scale <= high):  # NaN fails both
+            raise SettingsError(
+                f"--time-scale must be {low:g} to {high:g} (2: the motion played at half its speed), "
+                f"got {self.time_scale:g}"
             )
         if self.scenario is not None and self.scenario not in SCENARIOS:
             raise SettingsError(f"unknown scenario {self.scenario!r}; choose one of: {', '.join(SCENARIOS)}")

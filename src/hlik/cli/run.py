@@ -119,6 +119,14 @@ SpanOpt = Annotated[
     ),
 ]
 
+TimeScaleOpt = Annotated[
+    float,
+    typer.Option(
+        help="Play the motion this many times as long (time scaling): 2 at half its speed, for a "
+        "robot whose speed or acceleration limits cannot follow the person (0.1 to 10).",
+    ),
+]
+
 
 def _span(text: str | None) -> tuple[float, float] | None:
     """``START:END`` -> (start, end) s.
@@ -154,6 +162,7 @@ def run(
     scale: ScaleOpt = None,
     metric: MetricOpt = None,
     span: SpanOpt = None,
+    time_scale: TimeScaleOpt = 1.0,
     export: ExportOpt = None,
 ) -> None:
     """Retarget a motion to a robot; write a Rerun recording and the trajectory (.npz) beside it."""
@@ -177,6 +186,7 @@ def run(
             metric=metric,
             gradients=gradients,
             span=_span(span),
+            time_scale=time_scale,
         )
         if layout not in LAYOUTS:
             raise HlikError(f"unknown layout {layout!r}; choose one of: {', '.join(LAYOUTS)}")
@@ -321,6 +331,7 @@ def _tag(spec: RunSpec, robot: RobotDefaults, layout: str, corpus_source: str) -
         rate=spec.rate,
         layout=layout,
         span=spec.span,
+        time_scale=spec.time_scale,
         corpus=spec.corpus if corpus_source in ("--corpus", "HLIK_CORPUS") else None,
     )
 
@@ -340,6 +351,7 @@ def _run_tag(
     layout: str,
     corpus: Path | None,
     span: tuple[float, float] | None = None,
+    time_scale: float = 1.0,
 ) -> str:
     """The part of the default output name after motion and robot: every choice that changes the
     result, defaults left out, e.g. ``slsqp_SYN_HJA_r_fd``, ``qp_my_stack_at-0.4_1.2_90``."""
@@ -352,6 +364,7 @@ def _run_tag(
     parts += [] if rate == 100.0 else ["native" if rate == 0 else f"{rate:g}Hz"]
     parts += [layout] if layout != "side" else []
     parts += [f"{span[0]:g}-{span[1]:g}s"] if span is not None else []
+    parts += [f"x{time_scale:g}"] if time_scale != 1.0 else []
     parts += [f"corpus-{Path(corpus).resolve().name or 'root'}"] if corpus is not None else []
     return "_".join(parts)
 

@@ -175,6 +175,19 @@ class HumanMotion:
         keep = (t >= start - 1e-9) & (t <= stop + 1e-9)
         return self.frames(keep)
 
+    def retimed(self, factor: float) -> HumanMotion:
+        """The same motion played ``factor`` times as long (2: at half the speed), resampled to
+        its own rate: time scaling, so that a robot follows a motion too fast for its limits.
+
+        Raises:
+            hlik.util.errors.SettingsError: the result would have too many frames (:meth:`resample`).
+        """
+        if factor == 1.0:
+            return self
+        rate, t0 = self.rate, self.times[0]
+        slow = replace(self, times=t0 + (self.times - t0) * factor)
+        return slow.resample(rate) if self.n_frames > 1 else slow
+
     def resample(self, rate: float) -> HumanMotion:
         """Resample to ``rate`` Hz: quintic splines (C⁴) for angles and positions, rotation splines
         (C²) for rotations. Markers and object poses are splined over each stretch they were seen in
