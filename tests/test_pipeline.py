@@ -191,3 +191,15 @@ def test_a_callers_limit_runs_through_the_whole_pipeline(cut_take):
     assert held.q[:, j].max() <= bound + 1e-6
     with pytest.raises(HlikError, match="keeps no limits"):
         get_solver("jm", limits=[Below()])
+
+
+def test_a_time_scaled_run_is_the_same_joint_path_at_a_fraction_of_the_speed():
+    """JM of the demo's first second played twice as long: every other frame is the plain run's
+    frame (the same poses), and the joints move at half the speed."""
+    spec = RunSpec(robot="armar6", solver="jm", placement="mapped", span=(0.0, 1.0))
+    plain = run(spec).trajectory
+    slow = run(replace(spec, time_scale=2.0)).trajectory
+    assert slow.n_frames == 2 * plain.n_frames - 1
+    np.testing.assert_allclose(slow.q[::2], plain.q, atol=1e-9)
+    speed = lambda t: np.abs(np.diff(t.q, axis=0)).max() / t.period  # noqa: E731
+    assert speed(slow) == pytest.approx(speed(plain) / 2, rel=0.1)
