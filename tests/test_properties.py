@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
-from hypothesis import HealthCheck, assume, given, settings
+from hypothesis import HealthCheck, assume, example, given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
@@ -150,6 +150,9 @@ _BAND = (0.005, np.radians(3.0))
     criterion=st.sampled_from(["SYN", "HJA_r", "EEA", "SOA_x", "SOA_q", "HJL", "MAN_r", "SYN_r", "EEA_r"]),
     start=st.floats(1.0, 4.0),
 )
+# found by hypothesis: the first frame ended roundoff-limited outside the band, and the relaxed
+# band then let EEA_r hold the hand 3.8 cm off for the whole stretch
+@example(robot="armar6", solver="slsqp", criterion="EEA_r", start=1.3046875)
 def test_a_criterion_never_turns_a_reachable_hand_out_of_the_band(takes, robot, solver, criterion, start):
     """Any criterion, strongly weighted, on a stretch of a real take whose targets the robot can
     reach (its own TCP along the joint mapping, 3x slower): with the band, every hand stays within

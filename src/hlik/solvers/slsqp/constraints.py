@@ -72,9 +72,9 @@ class BandConstraint:
     """The hands' tolerance band as NLopt's ``h_p(q) - bound_p <= 0``, one row per arm (per part)
     of each target term that has a band: the error of hand p (m or rad) within the band or, in a
     frame where that cannot be met (a target out of reach, or one the limits let the hand only lag
-    behind), no worse than at the frame's start (``bound_p = max(band, h_p(q_start))``), which is
-    always feasible; the objective's tracking loss then pulls the hand in. In the variables of
-    :attr:`chart` when set.
+    behind), no worse than as near as the frame can bring it (``bound_p = max(band, h_p(q_near))``,
+    ``q_near`` minimising the misses alone, :meth:`misses`): a criterion cannot hold a hand off
+    that the frame could have brought closer. In the variables of :attr:`chart` when set.
     """
 
     def __init__(self, robot: Robot, losses: Sequence[Loss], settings: SLSQPSettings):
@@ -105,9 +105,25 @@ class BandConstraint:
 
     def reset(self, frame: Sample, q_start: np.ndarray, chart: Chart | None, strict: bool) -> None:
         """Set the frame, its start ``q_start`` (n,) and the objective's chart; ``strict``: the
-        bound is the band, else the band or the start's error where that is larger."""
+        bound is the band, else the band or the error at ``q_start`` where that is larger."""
         self.frame, self.chart = frame, chart
         self.bound = self.band if strict else np.maximum(self.band, self.errors(q_start)[0])
+
+    def misses(self, q: np.ndarray, grad: np.ndarray) -> float:
+        """``sum_p (max(0, h_p(q) - band_p) / band_p)^2`` at ``q`` (n,), the hands' squared misses of
+        the band in band widths (a position's 5 mm weighs as an orientation's 3 deg, not as 5 mrad),
+        with its gradient written into ``grad`` (n,) where NLopt asks for it."""
+        h, dh_dq = self.errors(q)
+        width = self.band
+        miss = np.maximum(h - width, 0.0) / width
+        if grad.size:
+            grad[:] = (2.0 * miss / width) @ dh_dq
+        return float(miss @ miss)
+
+    def holds(self, q: np.ndarray) -> bool:
+        """Whether every hand is within the current bound (:meth:`reset`) at ``q`` (n,), within
+        NLopt's tolerance."""
+        return bool(np.all(self.errors(q)[0] <= self.bound + BAND_TOLERANCE))
 
     def met(self, q: np.ndarray) -> bool:
         """Whether every hand is inside its band at ``q`` (n,), within NLopt's tolerance."""
@@ -126,7 +142,7 @@ class BoxConstraint:
     variables; without a chart (x = q), the rows alone (NLopt takes the box as bounds)."""
 
     def __init__(self, chart: Chart | None, box: JointBox):
-        rows, bound = box.step_rows(box.lower * 0.0 if chart is None else chart.origin)
+        rows, bound = box.step_rows(np.zeros_like(box.lower) if chart is None else chart.origin)
         if chart is None:
             self.a, self.b = rows, bound
             return
