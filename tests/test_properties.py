@@ -143,7 +143,7 @@ def test_swivel_prediction_features_are_smooth_where_hands_work(hand, yaw, tilt,
 _BAND = (0.005, np.radians(3.0))
 
 
-@settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(max_examples=9, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(
     robot=st.sampled_from(["armar3", "armar6", "dual_panda"]),
     solver=st.sampled_from(["qp", "slsqp"]),

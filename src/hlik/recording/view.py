@@ -150,8 +150,8 @@ def _joint_unit(model: mujoco.MjModel, name: str) -> str:
 
 def scene_camera(traj: Trajectory, robot: Robot, layout: str = "side", samples: int = 24) -> Camera:
     """The opening camera of the scene, world frame: in front of the human (where its pelvis faces,
-    on average over the take), a little above, as near as keeps every human and robot body and
-    every hand target inside the view cone with room to spare.
+    on average over the take), a little above, as near as keeps every human and robot body, every
+    hand target and every scene object where recorded inside the view cone with room to spare.
 
     Only ``samples`` frames spread over the take are looked at (forward kinematics of a few frames).
     """
@@ -160,11 +160,13 @@ def scene_camera(traj: Trajectory, robot: Robot, layout: str = "side", samples: 
     human_pos, _ = body_poses(human, qpos_trajectory(human, traj.motion.frames(rows)))
     shown = _display_placement(traj.placement, layout)
     robot_pos = _robot_points(traj, robot, rows) @ shown.rotation.T + shown.translation
+    objects = [o.position[rows] for o in traj.motion.objects.values()]  # NaN where unseen: dropped
     points = np.concatenate(
         [
             human_pos[:, 1:].reshape(-1, 3),
             robot_pos,
             traj.placement.to_world(traj.targets.pos[rows]).reshape(-1, 3),
+            *objects,
         ]
     )
     facing = traj.motion.root_rotation[:, :, 1].mean(axis=0)  # MMM root frame: y forward
