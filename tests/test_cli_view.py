@@ -360,6 +360,22 @@ def test_learning_and_reachability_report_progress(short_take, tmp_path):
     assert sampled == [(1000, 2500), (2000, 2500), (2500, 2500)]
 
 
+def test_the_summary_always_says_whether_a_hand_lagged(short_take, tmp_path, monkeypatch):
+    """One ``lagging`` row, with the spans where a hand was more than 5 cm off, or saying there
+    were none: a row left out read as a check not made."""
+    monkeypatch.chdir(tmp_path)
+    said = {}
+    for solver in ("jm", "qp"):  # the first second: the QP keeps both hands on (at 1.8 s one lags)
+        args = ("run", short_take, "--robot", "armar6", "--solver", solver, "--placement", "mapped")
+        result = invoke(*args, "--span", "0:1")
+        assert result.exit_code == 0, result.output
+        rows = [line.strip() for line in result.stdout.splitlines() if line.strip().startswith("lagging")]
+        assert len(rows) == 1, result.stdout
+        said[solver] = rows[0]
+    assert "jm maps the joints and does not track the hands" in said["jm"]
+    assert said["qp"] == "lagging         none: no hand more than 5 cm off its target in any frame"
+
+
 def test_a_piped_stage_that_reports_no_count_is_still_heard(monkeypatch, capsys):
     """Piped, a long stage prints a plain line after QUIET_FOR and then every EVERY seconds even
     when nothing updates it (reading a take, learning without a count); none once it has ended."""
