@@ -25,6 +25,17 @@ except SystemExit as e:
 print(",".join(m for m in {HEAVY!r} if m in sys.modules) + "|" + str(code), file=sys.__stdout__)
 """
 
+
+def _probe(args: list[str], cwd) -> tuple[str, str, str]:
+    """``hlik ARGS`` run by :data:`PROBE` in ``cwd``: the heavy modules it imported (comma
+    separated), its exit code and its stderr, stripped."""
+    done = subprocess.run(
+        [sys.executable, "-c", PROBE, *args], cwd=cwd, capture_output=True, text=True, timeout=60
+    )
+    heavy, _, code = done.stdout.strip().splitlines()[-1].partition("|")
+    return heavy, code, done.stderr.strip()
+
+
 MISTAKES = [
     (["run", "--robot", "armar7"], "unknown robot 'armar7'"),
     (["run", "no_such_take.xml"], "no_such_take.xml: no such file"),
@@ -52,12 +63,8 @@ MISTAKES = [
 
 @pytest.mark.parametrize(("args", "message"), MISTAKES, ids=[" ".join(a) for a, _ in MISTAKES])
 def test_a_mistake_is_answered_before_any_heavy_import(tmp_path, args, message):
-    done = subprocess.run(
-        [sys.executable, "-c", PROBE, *args], cwd=tmp_path, capture_output=True, text=True, timeout=60
-    )
-    heavy, _, code = done.stdout.strip().splitlines()[-1].partition("|")
-    err = done.stderr.strip()
-    assert code == "2", (done.stdout, err)
+    heavy, code, err = _probe(args, tmp_path)
+    assert code == "2", err
     assert len(err.splitlines()) == 1 and err.startswith("error: ") and message in err, err
     assert heavy == "", f"imported {heavy} before the error"
     assert not any(tmp_path.iterdir()), "nothing is written"
@@ -70,17 +77,10 @@ def test_an_existing_default_output_is_answered_before_any_heavy_import(tmp_path
     earlier = tmp_path / "recordings" / f"demo_pour_wipe_{robot}_jm.rrd"
     earlier.parent.mkdir()
     earlier.write_bytes(b"earlier")
-    done = subprocess.run(
-        [sys.executable, "-c", PROBE, "run", "--robot", robot, "--solver", "jm"],
-        cwd=tmp_path,
-        capture_output=True,
-        text=True,
-        timeout=60,
-    )
-    heavy, _, code = done.stdout.strip().splitlines()[-1].partition("|")
-    assert code == "2" and heavy == "", (done.stdout, done.stderr)
+    heavy, code, err = _probe(["run", "--robot", robot, "--solver", "jm"], tmp_path)
+    assert code == "2" and heavy == "", (heavy, err)
     said = "exists; pass --force to replace it, or --out to write elsewhere"
-    assert done.stderr.strip() == f"error: {earlier.relative_to(tmp_path)}: {said}"
+    assert err == f"error: {earlier.relative_to(tmp_path)}: {said}"
     assert earlier.read_bytes() == b"earlier" and [p.name for p in earlier.parent.iterdir()] == [earlier.name]
 
 
@@ -100,16 +100,8 @@ def test_a_bad_stack_file_value_is_answered_before_any_heavy_import(tmp_path, ta
     stack, work = tmp_path / "stack.toml", tmp_path / "work"
     stack.write_text(table)
     work.mkdir()
-    done = subprocess.run(
-        [sys.executable, "-c", PROBE, "run", "--stack", str(stack)],
-        cwd=work,
-        capture_output=True,
-        text=True,
-        timeout=60,
-    )
-    heavy, _, code = done.stdout.strip().splitlines()[-1].partition("|")
-    err = done.stderr.strip()
-    assert code == "2", (done.stdout, err)
+    heavy, code, err = _probe(["run", "--stack", str(stack)], work)
+    assert code == "2", err
     assert len(err.splitlines()) == 1 and f"{stack}:" in err and message in err, err
     if "solver" not in table:
         assert heavy == "", f"imported {heavy} before the error"

@@ -13,7 +13,6 @@ import mujoco
 import numpy as np
 
 from hlik.human.kinematics import human_model
-from hlik.robot.files import PLACEMENT_RULES as PLACEMENT_RULES  # re-exported
 from hlik.robot.files import description_defaults, robot_toml
 from hlik.robot.mapping import JointMapping
 from hlik.robot.model_file import COLLISION_GROUP as COLLISION_GROUP  # re-exported: models' geom groups

@@ -123,11 +123,14 @@ class BandConstraint:
     def holds(self, q: np.ndarray) -> bool:
         """Whether every hand is within the current bound (:meth:`reset`) at ``q`` (n,), within
         NLopt's tolerance."""
-        return bool(np.all(self.errors(q)[0] <= self.bound + BAND_TOLERANCE))
+        return self._within(q, self.bound)
 
     def met(self, q: np.ndarray) -> bool:
         """Whether every hand is inside its band at ``q`` (n,), within NLopt's tolerance."""
-        return bool(np.all(self.errors(q)[0] <= self.band + BAND_TOLERANCE))
+        return self._within(q, self.band)
+
+    def _within(self, q: np.ndarray, bound: np.ndarray) -> bool:
+        return bool(np.all(self.errors(q)[0] <= bound + BAND_TOLERANCE))
 
     def __call__(self, result: np.ndarray, x: np.ndarray, grad: np.ndarray) -> None:
         h, dh_dq = self.errors(x if self.chart is None else self.chart.q(x))

@@ -120,18 +120,11 @@ def _nearest_band(
     NLopt finds none better."""
     band.reset(frame, q0, None, strict=True)
     opt = nlopt.opt(nlopt.LD_SLSQP, len(q0))
-    opt.set_lower_bounds(box.lower)
-    opt.set_upper_bounds(box.upper)
     opt.set_ftol_rel(1e-8)
     opt.set_maxeval(max_eval)
-    if collision is not None:
-        collision.chart = None
-        opt.add_inequality_mconstraint(
-            collision, np.full(collision.settings.collision_pairs, COLLISION_TOLERANCE)
-        )
-    rows = BoxConstraint(None, box)
-    if len(rows):
-        opt.add_inequality_mconstraint(rows, np.full(len(rows), BOX_TOLERANCE))
+    seen = Evaluated()
+    _add_collision(opt, collision, None, seen)
+    _add_box(opt, box, None, seen)
     opt.set_min_objective(band.misses)
     start = band.misses(q0, np.zeros(0))
     try:
@@ -164,29 +157,13 @@ def _solve_once(
     chart = objective.chart
     opt.remove_inequality_constraints()
     seen = Evaluated()
-    if collision is not None:
-        collision.chart = chart
-        tolerance = np.full(collision.settings.collision_pairs, COLLISION_TOLERANCE)
-        opt.add_inequality_mconstraint(seen.constraint(collision, COLLISION_TOLERANCE), tolerance)
+    _add_collision(opt, collision, chart, seen)
     if band is not None:
         band.reset(frame, q0 if near is None else near, chart, strict)
         # not recorded: a fallback keeps the body's constraints, and the hands as near as it can
         opt.add_inequality_mconstraint(band, np.full(len(band), BAND_TOLERANCE))
-    if chart is None:
-        opt.set_lower_bounds(box.lower)
-        opt.set_upper_bounds(box.upper)
-        x0 = q0
-    else:
-        opt.set_lower_bounds(np.full(len(q0), -np.inf))
-        opt.set_upper_bounds(np.full(len(q0), np.inf))
-        x0 = np.zeros(len(q0))
-    bounds = BoxConstraint(chart, box)
-    if len(bounds):
-        # a joint starting on its limit starts on the row: with no tolerance, rounding in A x
-        # made SLSQP's line search fail (ROUNDOFF_LIMITED) on 7 % of ARMAR-6's Cut frames
-        opt.add_inequality_mconstraint(
-            seen.constraint(bounds, BOX_TOLERANCE), np.full(len(bounds), BOX_TOLERANCE)
-        )
+    _add_box(opt, box, chart, seen)
+    x0 = q0 if chart is None else np.zeros(len(q0))
     opt.set_min_objective(seen.objective(objective))
     opt.set_maxeval(max_eval)
     try:
@@ -203,6 +180,31 @@ def _solve_once(
     if q is None:
         q, status = _fallback(seen, chart, q0, status)
     return np.asarray(q, dtype=float), int(status)
+
+
+def _add_collision(
+    opt: nlopt.opt, collision: CollisionConstraint | None, chart: Chart | None, seen: Evaluated
+) -> None:
+    """``collision``'s rows on ``opt``, in ``chart``'s variables (q if None), recorded in ``seen``."""
+    if collision is not None:
+        collision.chart = chart
+        tolerance = np.full(collision.settings.collision_pairs, COLLISION_TOLERANCE)
+        opt.add_inequality_mconstraint(seen.constraint(collision, COLLISION_TOLERANCE), tolerance)
+
+
+def _add_box(opt: nlopt.opt, box: JointBox, chart: Chart | None, seen: Evaluated) -> None:
+    """The joint box on ``opt``: NLopt's bounds in q (none in a chart's variables, where it is
+    rows), and its rows (:class:`BoxConstraint`), recorded in ``seen``."""
+    n = len(box.lower)
+    opt.set_lower_bounds(box.lower if chart is None else np.full(n, -np.inf))
+    opt.set_upper_bounds(box.upper if chart is None else np.full(n, np.inf))
+    bounds = BoxConstraint(chart, box)
+    if len(bounds):
+        # a joint starting on its limit starts on the row: with no tolerance, rounding in A x
+        # made SLSQP's line search fail (ROUNDOFF_LIMITED) on 7 % of ARMAR-6's Cut frames
+        opt.add_inequality_mconstraint(
+            seen.constraint(bounds, BOX_TOLERANCE), np.full(len(bounds), BOX_TOLERANCE)
+        )
 
 
 def _fallback(seen: Evaluated, chart: Chart | None, q0: np.ndarray, status: int) -> tuple[np.ndarray, int]:
