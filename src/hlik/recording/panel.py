@@ -31,21 +31,20 @@ def summary(traj: Trajectory, robot: Robot, evaluation: Evaluation | None, info:
     }
     title = Path(source).stem if source else traj.motion.name
     lines = [f"### {title} on {robot.name}, {traj.solver}", ""]
-    table = []
-    if evaluation is not None:  # the scores first: what the panel is opened for
+    if evaluation is not None:  # the scores first, then each criterion's: what the panel is opened for
         result = evaluation.to_json()
         lines += [
             f"**m_hl = {result['m_hl']:.4f}**, m_f = {result['m_f']:.4f}, "
             f"m_hl,f = {result['m_hl_f']:.4f} (scenario {result['scenario']}; "
             f"weights and x0: {_cell(result['metric'])})",
             "",
+            *_criteria_table(
+                [(k, v["h"], v["m"]) for group in ("metrics", "functional") for k, v in result[group].items()]
+            ),
+            "",
         ]
-        table = ["", "| criterion | mean h | m |", "|---|---:|---:|"]
-        for group in ("metrics", "functional"):
-            table += [f"| {k} | {v['h']:.4g} | {v['m']:.4f} |" for k, v in result[group].items()]
     lines += ["| | |", "|---|---|"]
     lines += [f"| {k} | {_cell(v)} |" for k, v in settings.items()]
-    lines += table
     n = traj.n_frames
     lines += [
         "",
@@ -61,6 +60,19 @@ def summary(traj: Trajectory, robot: Robot, evaluation: Evaluation | None, info:
         ]
     lines += ["", f"hlik {__version__}"]
     return "\n".join(lines) + "\n"
+
+
+def _criteria_table(rows: list[tuple[str, float, float]], across: int = 3) -> list[str]:
+    """Markdown rows of (criterion, mean h, m), ``across`` criteria to a row: the eleven metrics and
+    the functional ones fit the panel's opening height in five rows (one a row needed scrolling)."""
+    head = "| criterion | mean h | m |" + " | | |" * (across - 1)
+    rule = "|---|---:|---:|" + "---|---:|---:|" * (across - 1)
+    out = [head, rule]
+    for i in range(0, len(rows), across):
+        chunk = rows[i : i + across]
+        cells = [f" {k} | {h:.4g} | {m:.4f} " for k, h, m in chunk] + [" | | "] * (across - len(chunk))
+        out.append("|" + "|".join(cells) + "|")
+    return out
 
 
 def _cell(text: str) -> str:
