@@ -296,12 +296,16 @@ def test_the_bvh_writer_round_trips_the_joint_centres(tmp_path):
 
 def test_the_readme_python_block_runs(tmp_path, monkeypatch):
     """README "Python", as written (the shared data found where the tests find it), in a fresh
-    folder: every call in it works and the files it names are written."""
+    folder: every call in both its blocks works and the files they name are written."""
     pytest.importorskip("bvhio", reason='the block reads a BVH: pip install -e ".[bvh]"')
     take = data_file("kit_bimanual/Cut_files_motions_3021_Cut1_c_0_05cm_03.xml")
     text = (Path(__file__).resolve().parents[1] / "README.md").read_text()
-    start = text.index("```python", text.index("## Python")) + len("```python")
-    block = text[start : text.index("```", start)].replace("../shared/motion_data", str(take.parents[1]))
+    blocks = []  # the plain block, then the one that needs the extras
+    for _ in range(2):
+        start = text.index("```python", blocks[-1][1] if blocks else text.index("## Python")) + len("```python")
+        blocks.append((text[start : text.index("```", start)], text.index("```", start) + 3))
+    assert "load_robot(\"robots/examples/g1.toml\")" in blocks[1][0]
+    block = "".join(b for b, _ in blocks).replace("../shared/motion_data", str(take.parents[1]))
     block = block.replace('"robots/', f'"{Path(__file__).resolve().parents[1]}/robots/')  # from the checkout
     (tmp_path / "recordings").mkdir()
     monkeypatch.chdir(tmp_path)
