@@ -15,7 +15,6 @@ from hlik.util.paths import DEMO
 
 if TYPE_CHECKING:  # imported where used: `hlik --help` stays quick
     from hlik.pipeline import RunResult
-    from hlik.robot.model import Robot
     from hlik.run_spec import RunSpec
 
 from hlik.cli.app import (
@@ -196,10 +195,7 @@ def run(
         # the outputs before the heavy imports too: the default name needs the robot's description only
         defaults = robot_defaults(robot)
         rrd, npz = _outputs(spec, defaults, out, force, _tag(spec, defaults, layout, corpus_source))
-        from hlik.robot.model import load_robot
-
-        r = load_robot(robot)
-        result = _run_and_write(spec, r, rrd, npz, layout)
+        result = _run_and_write(spec, rrd, npz, layout)
     _report(result, rrd, npz, corpus_source)
     if export is not None:
         _export(result, npz, export)
@@ -213,12 +209,16 @@ def _motion_stem(path: Path) -> str:
     return path.stem if suffix in ("xml", "") else f"{path.stem}_{suffix}"
 
 
-def _run_and_write(spec: RunSpec, robot: Robot, rrd: Path, npz: Path, layout: str) -> RunResult:
-    """The pipeline's run with a progress line on stderr, then the recording and the trajectory."""
-    from hlik.pipeline import run as run_pipeline
-
+def _run_and_write(spec: RunSpec, rrd: Path, npz: Path, layout: str) -> RunResult:
+    """The robot loaded, the pipeline's run with a progress line on stderr, then the recording
+    and the trajectory. The line starts before the heavy imports: a cold first run is heard from
+    its first seconds when piped."""
     with progress_bar(spinner=True) as bar:
-        task = bar.add_task("", total=None)
+        task = bar.add_task(f"loading {spec.robot}", total=None)
+        from hlik.pipeline import run as run_pipeline
+        from hlik.robot.model import load_robot
+
+        robot = load_robot(str(spec.robot))
 
         def show(stage: str, done: int | None, total: int | None) -> None:
             bar.update(task, description=stage, completed=done or 0, total=total)
