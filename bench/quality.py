@@ -17,7 +17,8 @@ percentile) hand orientation error in degrees. Posture (:mod:`hlik.posture`, med
 takes): ``lean`` the trunk lean's median difference from the subject's in degrees, ``behind %`` the
 frames with an elbow more than 5 cm behind the shoulders' frontal plane (either arm; ``subj %`` the
 subject's), ``hands`` the hands' distance in front of the shoulders over the subject's (per arm
-length), ``wrists`` the same for the wrists, ``path`` the arm joints' path over the mapped human
+length), ``wrists`` the same for the wrists, ``swivel`` the elbows' swivel angle off the subject's
+(degrees, median over the frames, mean over the arms), ``path`` the arm joints' path over the mapped human
 pose's. An approach
 ``solver@stack+...`` takes its weights from that stack (``slsqp@paper_opt``).
 
@@ -80,7 +81,7 @@ def run(
     learned = learn(robot)
     rows, fpos, freach, off, times, capped, speed, contact = [], [], [], [], [], [], [], []
     acc, acc_over, tau, tau_over, stop, floor, fori = [], [], [], [], [], [], []
-    lean, behind, subject_behind, hands, wrists, path = [], [], [], [], [], []
+    lean, behind, subject_behind, hands, wrists, path, swivel = [], [], [], [], [], [], []
     for take in takes:
         spec = RunSpec(
             motion=take,
@@ -118,6 +119,7 @@ def run(
         hands.append(np.mean(pj["hand_front_ratio"]))
         wrists.append(np.mean(pj["wrist_front_ratio"]))
         path.append(pj["path_ratio"])
+        swivel.append(np.nanmean(pj["swivel_difference_deg"]))
         fpos.append(err.ravel())
         freach.append(err[reachable(robot, traj)])
         off.append(relative_errors(traj.tcp_pos, traj.tcp_rot, traj.targets.pos, traj.targets.rot)[0])
@@ -148,6 +150,7 @@ def run(
         "hands": float(np.median(hands)),
         "wrists": float(np.median(wrists)),
         "path": float(np.median(path)),
+        "swivel": float(np.median(swivel)),
     }
 
 
@@ -200,6 +203,7 @@ def main() -> None:
         ("hands", 5),
         ("wrists", 6),
         ("path", 5),
+        ("swivel", 6),
     )
     print(head + " ".join(f"{name:>{width}s}" for name, width in cols), flush=True)
     for robot_name in args.robots.split(","):
@@ -224,7 +228,7 @@ def main() -> None:
                 f"{r['acc_over']:5.1f} {r['tau']:5.2f} {r['tau_over']:5.1f} {r['stop']:6.1f} "
                 f"{r['floor']:8.2f} {r['lag']:5.1f} {r['fori']:5.1f} {r['fori95']:6.1f} {r['lean']:5.1f} "
                 f"{r['behind']:8.1f} {r['subj_behind']:6.1f} {r['hands']:5.2f} {r['wrists']:6.2f} "
-                f"{r['path']:5.2f}",
+                f"{r['path']:5.2f} {r['swivel']:6.1f}",
                 flush=True,
             )
 
