@@ -542,6 +542,9 @@ def test_piped_output_never_breaks_a_path(short_take, tmp_path, monkeypatch):
     assert not [line for line in lines if line.endswith(" ")]
     controller = [line for line in lines if line.lstrip().startswith("controller")]
     assert len(controller) == 1 and controller[0].rstrip().endswith("at the acceleration limits)")
+    scored = invoke("evaluate", out.with_suffix(".npz"), env={"COLUMNS": "80"})  # its table's title
+    assert scored.exit_code == 0, scored.output
+    assert any(out.with_suffix(".npz").name in line for line in scored.stdout.splitlines()), scored.stdout
 
 
 def test_run_says_which_corpus_the_criteria_came_from(corpus, short_take, tmp_path, monkeypatch):

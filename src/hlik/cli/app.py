@@ -91,7 +91,11 @@ console = Console(markup=False)
 
 def print_table(table) -> None:
     """A table on stdout: laid out to the terminal's width there; piped, each row on one line with
-    no padding after it, so that a path or a command is never broken and ``grep`` finds a row."""
+    no padding after it, so that a path or a command is never broken and ``grep`` finds a row. A
+    title is its own line above (rich wraps one to the table's width, mid-name)."""
+    if table.title:
+        console.print(str(table.title), soft_wrap=True, markup=False, highlight=False)
+        table.title = None
     if console.is_terminal:
         console.print(table)
         return
