@@ -37,6 +37,8 @@ MISTAKES = {
     "bad stack-file value": ["run", "--stack", "bad_stack.toml"],  # written into the working folder
     "default output exists": ["run", "--solver", "jm"],  # recordings/demo_pour_wipe_armar6_jm.rrd, written
     "unknown export format": ["run", "--export", "parquet"],
+    "negative subject scale": ["run", "--scale", "-2"],
+    "export, unknown format": ["export", "recordings/demo_pour_wipe_armar6_jm.npz", "--format", "xlsx"],
 }
 HEAVY = ("numpy", "mujoco", "scipy", "rerun")
 
@@ -77,8 +79,10 @@ def main() -> None:
     opts = parser.parse_args()
     with tempfile.TemporaryDirectory() as cwd:  # nothing to find or write in the working folder
         (Path(cwd) / "bad_stack.toml").write_text("[qp.gamma]\nHJA_r = 1e300\n")
-        (Path(cwd) / "recordings").mkdir()
-        (Path(cwd) / "recordings" / "demo_pour_wipe_armar6_jm.rrd").write_bytes(b"")
+        # a real run's pair: the default output that exists, the trajectory to export
+        subprocess.run(
+            [sys.executable, "-m", "hlik", "run", "--solver", "jm"], cwd=cwd, check=True, capture_output=True
+        )
         floor = statistics.median(_floor(cwd) for _ in range(opts.repeat))
         print(f'floor (python -c "import hlik.cli"): {floor:.2f} s, median of {opts.repeat}')
         print(f"{'mistake':28s} {'median s':>8s} {'/floor':>6s} exit  heavy imports  message")

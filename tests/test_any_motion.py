@@ -302,9 +302,10 @@ def test_the_readme_python_block_runs(tmp_path, monkeypatch):
     text = (Path(__file__).resolve().parents[1] / "README.md").read_text()
     blocks = []  # the plain block, then the one that needs the extras
     for _ in range(2):
-        start = text.index("```python", blocks[-1][1] if blocks else text.index("## Python")) + len("```python")
+        after = blocks[-1][1] if blocks else text.index("## Python")
+        start = text.index("```python", after) + len("```python")
         blocks.append((text[start : text.index("```", start)], text.index("```", start) + 3))
-    assert "load_robot(\"robots/examples/g1.toml\")" in blocks[1][0]
+    assert 'load_robot("robots/examples/g1.toml")' in blocks[1][0]
     block = "".join(b for b, _ in blocks).replace("../shared/motion_data", str(take.parents[1]))
     block = block.replace('"robots/', f'"{Path(__file__).resolve().parents[1]}/robots/')  # from the checkout
     (tmp_path / "recordings").mkdir()

@@ -58,6 +58,8 @@ MISTAKES = [
     (["run", "--export", "parquet"], "unknown --export format 'parquet'"),
     (["run", "--time-scale", "0"], "--time-scale must be 0.1 to 10"),
     (["run", "--time-scale", "nan"], "--time-scale must be 0.1 to 10"),
+    (["run", "--scale", "-2"], "subject scale (--scale, subject_scale) must be auto or 0.1-10"),
+    (["run", "--scale", "big"], "subject scale (--scale, subject_scale) must be auto or 0.1-10"),
 ]
 
 
@@ -68,6 +70,16 @@ def test_a_mistake_is_answered_before_any_heavy_import(tmp_path, args, message):
     assert len(err.splitlines()) == 1 and err.startswith("error: ") and message in err, err
     assert heavy == "", f"imported {heavy} before the error"
     assert not any(tmp_path.iterdir()), "nothing is written"
+
+
+def test_an_unknown_export_format_is_answered_before_any_heavy_import(tmp_path):
+    work = tmp_path / "work"
+    work.mkdir()
+    (work / "run.npz").write_bytes(b"not read: the format is checked first")
+    heavy, code, err = _probe(["export", "run.npz", "--format", "xlsx"], work)
+    assert code == "2" and err == "error: unknown export format 'xlsx'; choose one of: csv, mcap, lerobot"
+    assert heavy == "", f"imported {heavy} before the error"
+    assert sorted(p.name for p in work.iterdir()) == ["run.npz"]
 
 
 @pytest.mark.parametrize("robot", ["armar6", "dual_panda", "armar3"])

@@ -14,7 +14,7 @@ from pathlib import Path
 from types import MappingProxyType
 
 from hlik.human.formats import motion_format
-from hlik.human.limits import RATE_RANGE
+from hlik.human.limits import RATE_RANGE, scale_factor
 from hlik.robot.files import robot_toml
 from hlik.solvers.catalog import SPECS, check_solver
 from hlik.solvers.stack_file import SCENARIOS, Stack, check_criteria, load_stack
@@ -113,6 +113,8 @@ class RunSpec:
                 f"--time-scale must be {low:g} to {high:g} (2: the motion played at half its speed), "
                 f"got {self.time_scale:g}"
             )
+        if self.scale is not None:
+            scale_factor(self.scale)
         if self.scenario is not None and self.scenario not in SCENARIOS:
             raise SettingsError(f"unknown scenario {self.scenario!r}; choose one of: {', '.join(SCENARIOS)}")
         if self.criteria is not None:

@@ -9,6 +9,7 @@ from typing import Annotated
 import typer
 
 from hlik.cli.app import FLAG, check_trajectory_file, console, one_line, trajectory_and_robot
+from hlik.run_spec import EXPORT_FORMATS
 from hlik.util.errors import HlikError
 
 
@@ -46,11 +47,11 @@ def export(
     over its speed, acceleration or effort limit)."""
     with one_line():
         check_trajectory_file(trajectory)
+        if fmt not in EXPORT_FORMATS:  # before the writers' libraries load
+            raise HlikError(f"unknown export format {fmt!r}; choose one of: {', '.join(EXPORT_FORMATS)}")
         from hlik.export import WRITERS, default_path
         from hlik.export import export as export_trajectory
 
-        if fmt not in WRITERS:
-            raise HlikError(f"unknown export format {fmt!r}; choose one of: {', '.join(WRITERS)}")
         suffix = WRITERS[fmt][1]
         path = out or default_path(trajectory, fmt)
         if suffix and path.suffix.lower() != suffix:

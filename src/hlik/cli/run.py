@@ -51,7 +51,8 @@ OutOpt = Annotated[
     typer.Option(
         "--out",
         "-o",
-        help="Output .rrd (default: recordings/<motion>_<robot>_<solver>.rrd, the options that differ from the defaults added to the name).",
+        help="Output .rrd (default: recordings/<motion>_<robot>_<solver>.rrd, the options that "
+        "differ from the defaults added to the name).",
         show_default=False,
     ),
 ]

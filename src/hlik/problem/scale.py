@@ -9,18 +9,15 @@ human-to-robot scaling of retargeting tools, about the shoulders.
 
 from __future__ import annotations
 
-import math
-
 import mujoco
 import numpy as np
 
 from hlik.human.kinematics import human_model
+from hlik.human.limits import scale_factor
 from hlik.human.motion import HumanMotion
 from hlik.robot.model import SIDES, Robot
-from hlik.util.errors import SettingsError
 
 ARM = ("shoulder", "elbow", "wrist", "tcp")
-SCALE_RANGE = (0.1, 10.0)  # a factor outside it is a typo, not a robot
 
 
 def arm_length(model: mujoco.MjModel, qpos: np.ndarray) -> float:
@@ -68,20 +65,12 @@ def scale_subject(motion: HumanMotion, robot: Robot, rule: float | str | None = 
         SettingsError: a rule that is neither ``auto`` nor a positive number.
     """
     rule = robot.subject_scale if rule is None else rule
-    if rule == "auto":
+    factor = scale_factor(rule)
+    if factor is None:
         factor = auto_scale(robot, motion)
         shoulders, robot_z = shoulder_heights(robot, motion)
         lift = robot_z - factor * shoulders[2]
         feet = f"{abs(lift):.2f} m {'above' if lift > 0 else 'below'} the floor"
         why = f" to {robot.title}'s arms about its shoulders (subject_scale auto; its feet {feet})"
         return motion.scaled(factor, why, about=shoulders, to=np.array([*shoulders[:2], robot_z]))
-    try:
-        factor = float(rule)
-    except (TypeError, ValueError):
-        factor = math.nan
-    if not SCALE_RANGE[0] <= factor <= SCALE_RANGE[1]:
-        low, high = SCALE_RANGE
-        raise SettingsError(
-            f"subject scale (--scale, subject_scale) must be auto or {low:g}-{high:g}, got {rule!r}"
-        )
     return motion.scaled(factor, "")
