@@ -686,3 +686,19 @@ def test_the_controller_row_says_how_the_motion_ends():
     assert _checks(10).stop_time == 0.0 and "ends at rest" in controller_line(_checks(10))
     backward = _checks(10, end_speed=np.array([-0.5]), acceleration_limit=np.array([2.0]))
     assert backward.stop_time == pytest.approx(0.25)  # a joint moving the other way stops as long
+
+
+def test_a_span_past_the_take_is_refused_and_one_past_its_end_is_cut(short_take, tmp_path, monkeypatch):
+    """A span that starts after the (2 s) take ends is an error naming the file and the take's
+    length, with nothing written (it once ran another span under the asked-for name); one that
+    ends after it is cut there, warned."""
+    monkeypatch.chdir(tmp_path)
+    args = ("run", short_take, "--solver", "jm", "--rate", "0", "--placement", "mapped")
+    refused = invoke(*args, "--span", "3:5")
+    assert refused.exit_code == 2, refused.output
+    err = refused.stderr.strip()
+    assert err == f"error: {short_take}: motion: --span 3:5 starts after the take ends (2.00 s)", err
+    assert not list(tmp_path.rglob("*.rrd")) and not list(tmp_path.rglob("*.npz"))
+    cut = invoke(*args, "--span", "1:5")
+    assert cut.exit_code == 0, cut.output
+    assert f"{short_take}: span 1-5 s cut to 1-2.00 s (the take is shorter)" in cut.stderr

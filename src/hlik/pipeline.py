@@ -31,6 +31,7 @@ from hlik.run_spec import RunSpec
 from hlik.solvers import SPECS, get_solver
 from hlik.solvers.stack_file import Stack
 from hlik.trajectory import Trajectory
+from hlik.util.errors import SettingsError
 
 # (stage, done, total): what the run is doing, and how far (None, None: no count)
 Progress = Callable[[str, int | None, int | None], None]
@@ -80,10 +81,15 @@ def read_motion(spec: RunSpec, robot: Robot) -> HumanMotion:
     motion = load_motion(spec.motion_path, rate=spec.rate or None)
     if spec.span is not None:
         start, stop = spec.span
-        cut = min(start, motion.duration / 2), min(stop, motion.duration)
-        motion = motion.crop(*cut)
-        if cut != (start, stop):
-            kept = f"{cut[0]:g}-{cut[1]:g} s"
+        if start >= motion.duration:  # another span than asked for would be retargeted
+            raise SettingsError(
+                f"{spec.motion_path}: motion: --span {start:g}:{stop:g} starts after the take ends "
+                f"({motion.duration:.2f} s)"
+            )
+        full = motion.duration
+        motion = motion.crop(start, min(stop, full))
+        if stop > full:
+            kept = f"{start:g}-{full:.2f} s"
             note = f"{spec.motion_path}: span {start:g}-{stop:g} s cut to {kept} (the take is shorter)"
             motion = replace(motion, notes=(*motion.notes, note))
     return scale_subject(motion.retimed(spec.time_scale), robot, spec.scale)
