@@ -521,9 +521,20 @@ def test_the_default_corpus_is_remembered_else_the_shared_takes_else_the_demo(
     monkeypatch.setenv("HLIK_DATA", str(tmp_path / "no data"))
     (tmp_path / "hlik.toml").unlink()
     config.unlink()
-    fallen = invoke("run", short_take, "--robot", "dual_panda", "--rate", "0", "--force")
+    # a mistyped HLIK_DATA is not replaced by the ../shared beside the working folder
+    beside = tmp_path / "shared" / "motion_data" / "kit_bimanual"
+    beside.mkdir(parents=True)
+    shutil.copy(short_take, beside / "take.xml")
+    (tmp_path / "checkout").mkdir()
+    monkeypatch.chdir(tmp_path / "checkout")
+    fallen = invoke(
+        "run", short_take, "--robot", "dual_panda", "--rate", "0", "--force", env={"COLUMNS": "300"}
+    )
     assert fallen.exit_code == 0, fallen.output
     assert "warning: criteria learned from the bundled demo" in fallen.stderr
+    assert f"HLIK_DATA={tmp_path / 'no data'} holds no kit_bimanual takes" in fallen.stdout
+    monkeypatch.delenv("HLIK_DATA")
+    assert corpus_setting() == (beside, "the shared KIT takes")  # unset: the folder beside
 
 
 def test_piped_output_never_breaks_a_path(short_take, tmp_path, monkeypatch):

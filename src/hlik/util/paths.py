@@ -81,13 +81,15 @@ def user_config() -> Path:
 
 
 def shared_takes() -> Path | None:
-    """The folder of KIT bimanual takes beside a checkout, if there: ``$HLIK_DATA/kit_bimanual``,
-    else ``../shared/motion_data/kit_bimanual`` from the working folder (the default of ``hlik
-    study`` and, holding takes, of the corpus)."""
+    """The folder of KIT bimanual takes beside a checkout, if there: ``$HLIK_DATA/kit_bimanual``
+    where ``HLIK_DATA`` is set (and nothing else: a mistyped one is not replaced by another
+    folder), else ``../shared/motion_data/kit_bimanual`` from the working folder (the default of
+    ``hlik study`` and, holding takes, of the corpus)."""
     data = os.environ.get("HLIK_DATA")
-    candidates = [Path(data) / "kit_bimanual"] if data else []
-    candidates.append(Path.cwd().parent / "shared" / "motion_data" / "kit_bimanual")
-    return next((c for c in candidates if c.is_dir()), None)
+    folder = (
+        Path(data) / "kit_bimanual" if data else Path.cwd().parent / "shared" / "motion_data" / "kit_bimanual"
+    )
+    return folder if folder.is_dir() else None
 
 
 def shared_corpus() -> Path | None:
