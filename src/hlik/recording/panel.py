@@ -65,8 +65,8 @@ def summary(traj: Trajectory, robot: Robot, evaluation: Evaluation | None, info:
 def _criteria_table(rows: list[tuple[str, float, float]], across: int = 3) -> list[str]:
     """Markdown rows of (criterion, mean h, m), ``across`` criteria to a row: the eleven metrics and
     the functional ones fit the panel's opening height in five rows (one a row needed scrolling)."""
-    head = "| criterion | mean h | m |" + " | | |" * (across - 1)
-    rule = "|---|---:|---:|" + "---|---:|---:|" * (across - 1)
+    head = "|" + " criterion | mean h | m |" * across
+    rule = "|" + "---|---:|---:|" * across
     out = [head, rule]
     for i in range(0, len(rows), across):
         chunk = rows[i : i + across]
