@@ -174,7 +174,7 @@ def test_a_tiny_study_writes_cells_metric_and_report(tiny):
     assert (
         "<td>yes</td>" not in html
         and "<td>no</td>" not in html
-        and "not judged: 1 take, 202 frames" in html  # two approaches correlated
+        and "not judged: 1 take (needs 3), 202 frames (needs 1000)" in html  # two approaches correlated
     )
     rows = result.rankings[0].rows
     assert [r["m_hl_f"] for r in rows] == sorted((r["m_hl_f"] for r in rows), reverse=True)

@@ -111,7 +111,10 @@ def findings(corr: Correlation, rankings: Sequence[Ranking]) -> list[tuple[str, 
     def verdict(ok: bool, small: bool, needs: str) -> str:
         return f"not judged: {needs}" if small else ("yes" if ok else "no")
 
-    needs = f"{data}; needs {MIN_TAKES} takes and {MIN_FRAMES} frames"
+    # the requirement the study misses, each count beside what it needs
+    missed = [f"{corr.takes} take{'s' * (corr.takes != 1)} (needs {MIN_TAKES})"] * (corr.takes < MIN_TAKES)
+    missed += [f"{corr.frames} frames (needs {MIN_FRAMES})"] * (corr.frames < MIN_FRAMES)
+    needs = ", ".join(missed)
 
     def rho(a: str, b: str) -> float:
         return float(c[idx[a], idx[b]]) if a in idx and b in idx else float("nan")
