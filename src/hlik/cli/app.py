@@ -117,7 +117,7 @@ CorpusOpt = Annotated[
     typer.Option(
         help="Folder of MMM motions to learn synergies and the swivel regressor from, or demo (the "
         'bundled synthetic demo). Default: $HLIK_CORPUS, else corpus = "DIR" in ./hlik.toml, else the '
-        "one `hlik learn --corpus` remembered (~/.config/hlik/config.toml), else the shared KIT takes "
+        "corpus the learn command remembered (~/.config/hlik/config.toml), else the shared KIT takes "
         "(../shared/motion_data/kit_bimanual or $HLIK_DATA), else the demo (warned).",
         show_default=False,
     ),
