@@ -144,7 +144,8 @@ def test_stack_slsqp_settings_are_the_papers():
 
     assert load_stack("paper_opt").settings("slsqp") == SLSQPSettings()  # the paper's OPT
     tuned = load_stack("ee_pose").settings("slsqp")
-    paper = replace(tuned, criterion_cost=10.0, max_eval=100, orientation_cost=9.0, elbow_cost=0.0)
+    assert tuned.gamma == {"SYN": 3.0, "SOA_x": 2.0, "EEA": 2.0, "MIS": 0.25}  # hands first: README
+    paper = replace(tuned, criterion_cost=10.0, max_eval=100, orientation_cost=9.0, elbow_cost=0.0, gamma={})
     assert paper == SLSQPSettings()
     relative = load_stack("relative_pose").settings("slsqp")
     assert relative == SLSQPSettings.relative()
