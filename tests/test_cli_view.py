@@ -253,9 +253,13 @@ def test_solver_and_body_warnings_count_frames(
         assert len(said) == (count > 0)
         if count:
             assert f"{count} of {n} frames" in said[0]
-    # jm maps the joints: by design it tracks no hand and keeps no speed limit, and is not warned about
+    # jm maps the joints: by design it tracks no hand and keeps no speed limit; one line says so
+    # where it breaks one (the default solver: a new user must hear that it is not for a robot)
     tracking = solver != "jm"
     assert any("exceed their limits" in note for note in notes) == (tracking and speed > 1 + 1e-6)
+    mapped = [note for note in notes if "maps the joint angles and keeps no speed" in note]
+    assert len(mapped) == (not tracking and speed > 1 + 1e-6)
+    assert all(f"up to {speed:.2f} x a speed limit; not for a robot" in note for note in mapped)
     # pose: each hand against its target; relative: the hands against each other (paper Eq. 3)
     hands = [note for note in notes if "hand more than 5 cm" in note]
     relative = [note for note in notes if "relative position is more than 5 cm" in note]

@@ -8,7 +8,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from conftest import ROBOTS, solve_problem
+from conftest import ROBOTS, kit_takes, solve_problem
 from hlik.criteria.learned import learn
 from hlik.human.demo import demo_motion
 from hlik.human.kinematics import HumanKinematics, forward_kinematics
@@ -25,6 +25,7 @@ from hlik.problem.placement import (
     yaw_rotation,
 )
 from hlik.problem.problem import build_problem
+from hlik.problem.scale import scale_subject
 from hlik.problem.targets import HandTargets
 from hlik.robot.floor import floor_height
 from hlik.robot.model import SIDES, joint_mapping, load_robot
@@ -96,6 +97,26 @@ def test_mapped_placement_ignores_a_stretch_of_targets_carried_away():
     found = mapped_placement(robot, motion, HumanKinematics(*world, truth.rotation @ state.tcp_rot))
     np.testing.assert_allclose(found.translation[:2], truth.translation[:2], atol=1e-6)
     assert found.yaw == pytest.approx(truth.yaw, abs=1e-6)
+
+
+@pytest.mark.parametrize("name", ["armar6", "dual_panda"])  # mapped is their default
+@pytest.mark.parametrize(("away", "start"), [(0.6, 1.0), (0.3, 0.5), (0.45, 2.5)])
+def test_mapped_placement_stands_where_a_take_carried_away_starts(name, away, start):
+    """The whole subject carried 2 m away for a share ``away`` of a recorded take (ramps of 0.5 s
+    in and out included; the field case unreachable_forward_2m: 60 %, which stood ARMAR-6 1.5 m
+    off, between the two places): the robot stands where the frames left in place alone would
+    stand it."""
+    robot = load_robot(name)
+    motion = load_motion(kit_takes()[5]).crop(0.0, 5.0).resample(50.0)  # the Stir take, as the field cases
+    t = motion.times - motion.times[0]
+    stop = start + away * 5.0
+    ramp = np.clip((t - start) / 0.5, 0, 1) - np.clip((t - stop + 0.5) / 0.5, 0, 1)
+    carried = replace(motion, root_position=motion.root_position + ramp[:, None] * [2.0, 0.0, 0.0])
+    scaled = scale_subject(motion, robot)  # about the first frame, in place in both
+    clean = mapped_placement(robot, scaled.frames(ramp == 0))
+    found = mapped_placement(robot, scale_subject(carried, robot))
+    np.testing.assert_allclose(found.translation[:2], clean.translation[:2], atol=0.03)
+    assert np.degrees(found.yaw) == pytest.approx(np.degrees(clean.yaw), abs=2.0)
 
 
 @pytest.mark.parametrize("name", ROBOTS)

@@ -85,6 +85,19 @@ def run_warnings(traj: Trajectory, motion: HumanMotion, ev: Evaluation, rate: fl
         notes.append(f"the robot is in self-collision in {share(touching)}")
     if tracking and ev.max_speed_ratio > 1.0 + 1e-6:
         notes.append(f"joint speeds exceed their limits, at most {ev.max_speed_ratio:.2f} x the limit")
+    c = ev.controller
+    if not tracking and (ev.max_speed_ratio > 1.0 + 1e-6 or c.frames_over_acceleration):
+        # one line, not one per limit: a mapping baseline is not for a robot, and a new user
+        # running the default solver should hear it
+        over = [f"{ev.max_speed_ratio:.2f} x a speed limit"] if ev.max_speed_ratio > 1.0 + 1e-6 else []
+        if c.frames_over_acceleration:
+            frames = share(c.frames_over_acceleration)
+            over.append(f"{c.acceleration_ratio.max():.2f} x an acceleration limit in {frames}")
+        notes.append(
+            f"{traj.solver} maps the joint angles and keeps no speed or acceleration limit: up to "
+            f"{', '.join(over)}; not for a robot as it is (hlik export refuses it; --solver qp keeps "
+            "the limits)"
+        )
     return notes + controller_warnings(ev.controller, tracking, share)
 
 

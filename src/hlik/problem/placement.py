@@ -273,27 +273,66 @@ def working_placement(
 def mapped_placement(robot: Robot, motion: HumanMotion, human: HumanKinematics | None = None) -> Placement:
     """Where the human's own joint angles put the robot's hands on the human's: the upright base
     pose that best fits the TCP positions of the joint mapping (JM, base frame) onto the human hand
-    positions (world), both hands, all frames (2D Procrustes).
+    positions (world), both hands (2D Procrustes), over the frames that agree.
 
-    The fit is trimmed: hand positions farther from the fit than twice the median distance (and
-    5 cm) are dropped and the fit repeated, so a stretch of unreachable targets (a subject carried
-    away) does not drag the robot off the rest. The robot stands on the floor, as with the other
-    rules.
+    Robust to stretches of unreachable targets (a subject carried away, ramps included). With the
+    yaw of a fit over all frames (then, a second time, over the frames agreed on), each frame's
+    offset (the mean over its hands of where the human hand is less where the mapped one lands)
+    is what the translation would be for that frame alone; each :data:`MAPPED_WINDOW` of the take
+    proposes the median of its frames' offsets, and the earliest proposal that at least
+    :data:`MAPPED_SHARE` as many frames agree with (within :func:`_agreement`) as with the most
+    agreed-with one wins (a consensus, as RANSAC's). The least-squares fit over the frames that
+    agree with it, three times over, is the placement. The fit over all frames it replaces stood
+    the robot between the two places of a take carried 2 m away for 60 % of its frames, every hand
+    off (field case unreachable_forward_2m). The robot stands
+    on the floor, as with the other rules.
     """
     human = human or forward_kinematics(motion)
     mapped, _ = tcp_poses(robot, joint_mapping(robot, motion))
-    a = mapped.reshape(-1, 3)[:, :2]
-    b = human.tcp_pos.reshape(-1, 3)[:, :2]
+    a, b = mapped[..., :2], human.tcp_pos[..., :2]  # (T, 2 hands, 2)
     keep = np.ones(len(a), dtype=bool)
+    every = max(1, int(round(MAPPED_WINDOW * motion.rate)))
+    for _ in range(2):  # the yaw of all frames first (a window's alone is ill-conditioned), then the agreed's
+        yaw, _ = _procrustes(a[keep].reshape(-1, 2), b[keep].reshape(-1, 2))
+        offset = np.mean(b - a @ yaw_rotation(yaw)[:2, :2].T, axis=1)  # (T, 2)
+        windows = [offset[k : k + every] for k in range(0, len(offset), every)]
+        proposals = [np.median(w, axis=0) for w in windows]
+        radius = _agreement(windows, proposals)
+        agree = [np.linalg.norm(offset - p, axis=-1) <= radius for p in proposals]
+        counts = np.array([np.count_nonzero(k) for k in agree])
+        keep = agree[int(np.flatnonzero(counts >= MAPPED_SHARE * counts.max())[0])]
     for _ in range(3):
-        a_mean, b_mean = a[keep].mean(axis=0), b[keep].mean(axis=0)
-        h = (a[keep] - a_mean).T @ (b[keep] - b_mean)
-        yaw = np.arctan2(h[0, 1] - h[1, 0], h[0, 0] + h[1, 1])
-        rotation = yaw_rotation(yaw)
-        xy = b_mean - rotation[:2, :2] @ a_mean
-        miss = np.linalg.norm(a @ rotation[:2, :2].T + xy - b, axis=-1)
-        keep = miss <= max(2.0 * float(np.median(miss)), 0.05)
-    return Placement(rotation, np.array([xy[0], xy[1], floor_height(robot)]), "mapped")
+        yaw, xy = _procrustes(a[keep].reshape(-1, 2), b[keep].reshape(-1, 2))
+        offset = np.mean(b - a @ yaw_rotation(yaw)[:2, :2].T, axis=1)
+        keep = np.linalg.norm(offset - xy, axis=-1) <= radius
+    return Placement(yaw_rotation(yaw), np.array([xy[0], xy[1], floor_height(robot)]), "mapped")
+
+
+# mapped_placement's consensus: each window of this many seconds proposes a translation, and the
+# earliest that at least this share of the most agreed-with one's frames agree with wins: where the
+# take starts (the field cases: a subject carried away, or drifting until the arms stretch, is
+# reached for, not followed), unless the subject only passes through there (a walk to the table)
+MAPPED_WINDOW = 1.0
+MAPPED_SHARE = 0.5
+MAPPED_RADIUS = 0.2  # m: a subject who moves less stays in one place
+
+
+def _agreement(windows: list[np.ndarray], proposals: list[np.ndarray]) -> float:
+    """How far, m, a frame's offset may be from a translation and agree with it: three times the
+    median distance of a window's offsets from its own proposal (the spread of a take that stays
+    in one place: a stretch carried away does not widen it), at least :data:`MAPPED_RADIUS`
+    (2-Panda's mapped hands, far from the human's, drift 12 cm between a take's first and last
+    second where its subject stood still)."""
+    spread = np.median([np.median(np.linalg.norm(w - p, axis=-1)) for w, p in zip(windows, proposals)])
+    return max(3.0 * float(spread), MAPPED_RADIUS)
+
+
+def _procrustes(a: np.ndarray, b: np.ndarray) -> tuple[float, np.ndarray]:
+    """The yaw (rad) and translation (2,) that best map the points ``a`` (N, 2) onto ``b``."""
+    a_mean, b_mean = a.mean(axis=0), b.mean(axis=0)
+    h = (a - a_mean).T @ (b - b_mean)
+    yaw = float(np.arctan2(h[0, 1] - h[1, 0], h[0, 0] + h[1, 1]))
+    return yaw, b_mean - yaw_rotation(yaw)[:2, :2] @ a_mean
 
 
 def placement_from_spec(
