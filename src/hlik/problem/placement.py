@@ -13,8 +13,8 @@ the subject is not sunk to the subject's shoulders: the subject is scaled to it
   left- and right-hand pose of the motion (Vahrenkamp et al. 2013; formulas.md §7): each candidate
   base pose (x, y, yaw) scores the minimum map entry over all hand poses, the scores are mean
   filtered, and the best candidate wins.
-- ``mapped``: where the joint-mapped human pose puts the robot's hands on the human's (a trimmed
-  least-squares fit over all frames).
+- ``mapped``: where the joint-mapped human pose puts the robot's hands on the human's (a
+  least-squares fit over the frames that agree on the place, found by consensus).
 - ``working``: among the base poses ``reach`` scores at least :data:`WORKING_REACH` of its best, the
   one that puts the hands where the subject works: in front of and beside the shoulders by the
   subject's median distances as shares of the arm's length (:func:`working_placement`).
