@@ -320,7 +320,7 @@ def mapped_placement(robot: Robot, motion: HumanMotion, human: HumanKinematics |
 # reached for, not followed), unless the subject only passes through there (a walk to the table)
 MAPPED_WINDOW = 1.0
 MAPPED_SHARE = 0.5
-# m: a subject who moves less stays in one place. At 0.4 every frame of the eight KIT takes agrees,
+# m: a subject who moves less stays in one place. At 0.4, on each of the eight KIT takes,
 # and each robot stands exactly where the plain fit stood it; at 0.2 2-Panda's mapped hands, far
 # from the human's, drifted out of agreement between a take's first and last second, and the fit
 # over part of the Cut take turned it 7 deg (its m_hl 0.700 -> 0.679)
