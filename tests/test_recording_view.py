@@ -293,7 +293,16 @@ def test_the_robot_carries_the_objects_its_hands_hold(run, cut_take, armar6):
 
 def test_one_left_right_label_pair_per_figure(run):
     # three labelled pairs (hand paths, target paths, TCP paths) piled up on the hands in side views
-    _, _, _, static, _ = run
-    assert static["/world/robot/target_paths"]["LineStrips3D:show_labels"] == [False]
-    for entity in ("/world/human/hand_paths", "/world/robot/tcp_paths"):
-        assert static[entity]["LineStrips3D:show_labels"] == [True]
+    traj, _, _, static, _ = run
+    for entity in ("/world/robot/target_paths", "/world/human/hand_paths", "/world/robot/tcp_paths"):
+        assert static[entity]["LineStrips3D:show_labels"] == [False]  # on the strip they sat on the hands
+    assert "/world/robot/target_paths/labels" not in static
+    paths = {
+        "/world/human/hand_paths": traj.placement.to_world(traj.targets.pos),
+        "/world/robot/tcp_paths": traj.tcp_pos,
+    }
+    for entity, pos in paths.items():  # drawn above each path, clear of its hand
+        labels = static[f"{entity}/labels"]
+        assert list(np.ravel(labels["Points3D:labels"])) == ["left", "right"]
+        above = np.reshape(labels["Points3D:positions"], (2, 3))[:, 2]
+        np.testing.assert_allclose(above, pos[..., 2].max(axis=0) + 0.12, atol=1e-5)

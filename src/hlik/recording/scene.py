@@ -155,8 +155,10 @@ _ARCHETYPES = {
 def _log_paths(
     rec, entity: str, pos: np.ndarray, colors: Mapping[str, tuple], show_labels: bool = True
 ) -> None:
-    """Both arms' paths (T, 2, 3) as two static line strips, labelled ``left``/``right`` (drawn, or
-    on hover only: three labelled pairs piled up on the robot's hands in side views)."""
+    """Both arms' paths (T, 2, 3) as two static line strips, labelled ``left``/``right`` on hover;
+    ``show_labels``: the labels drawn too, at ``<entity>/labels``, :data:`LABEL_LIFT` above each
+    path's highest point (drawn on the strips, they sat on the hands; three pairs of them piled up
+    on the robot's hands in side views)."""
     rec.log(
         entity,
         rr.LineStrips3D(
@@ -164,10 +166,22 @@ def _log_paths(
             colors=[colors[s] for s in SIDES],
             radii=0.003,
             labels=list(SIDES),
-            show_labels=show_labels,
+            show_labels=False,
         ),
         static=True,
     )
+    if show_labels:
+        finite = [p[np.all(np.isfinite(p), axis=1)] for p in (pos[:, i] for i in range(len(SIDES)))]
+        above = [[*np.mean(p[:, :2], axis=0), p[:, 2].max() + LABEL_LIFT] for p in finite if len(p)]
+        if len(above) == len(SIDES):
+            rec.log(
+                f"{entity}/labels",
+                rr.Points3D(above, radii=0.004, colors=[colors[s] for s in SIDES], labels=list(SIDES)),
+                static=True,
+            )
+
+
+LABEL_LIFT = 0.12  # m: a path's label this far above its highest point, clear of the hand
 
 
 def _keypoints_track(rec, entity: str, markers: Mapping[str, np.ndarray], times: np.ndarray) -> Track:
