@@ -83,13 +83,13 @@ def run_warnings(traj: Trajectory, motion: HumanMotion, ev: Evaluation, rate: fl
     touching = int(np.count_nonzero(ev.collisions))
     if touching:
         notes.append(f"the robot is in self-collision in {share(touching)}")
-    if tracking and ev.max_speed_ratio > 1.0 + 1e-6:
+    c, too_fast = ev.controller, ev.max_speed_ratio > 1.0 + 1e-6
+    if tracking and too_fast:
         notes.append(f"joint speeds exceed their limits, at most {ev.max_speed_ratio:.2f} x the limit")
-    c = ev.controller
-    if not tracking and (ev.max_speed_ratio > 1.0 + 1e-6 or c.frames_over_acceleration):
+    if not tracking and (too_fast or c.frames_over_acceleration):
         # one line, not one per limit: a mapping baseline is not for a robot, and a new user
         # running the default solver should hear it
-        over = [f"{ev.max_speed_ratio:.2f} x a speed limit"] if ev.max_speed_ratio > 1.0 + 1e-6 else []
+        over = [f"{ev.max_speed_ratio:.2f} x a speed limit"] if too_fast else []
         if c.frames_over_acceleration:
             frames = share(c.frames_over_acceleration)
             over.append(f"{c.acceleration_ratio.max():.2f} x an acceleration limit in {frames}")
@@ -98,7 +98,7 @@ def run_warnings(traj: Trajectory, motion: HumanMotion, ev: Evaluation, rate: fl
             f"{', '.join(over)}; not for a robot as it is (hlik export refuses it; --solver qp keeps "
             "the limits)"
         )
-    return notes + controller_warnings(ev.controller, tracking, share)
+    return notes + controller_warnings(c, tracking, share)
 
 
 def controller_warnings(c: ControllerChecks, tracking: bool, share: Callable[[int], str]) -> list[str]:

@@ -80,13 +80,12 @@ def read_motion(spec: RunSpec, robot: Robot) -> HumanMotion:
     None)."""
     motion = load_motion(spec.motion_path, rate=spec.rate or None)
     if spec.span is not None:
-        start, stop = spec.span
-        if start >= motion.duration:  # another span than asked for would be retargeted
+        (start, stop), full = spec.span, motion.duration
+        if start >= full:  # another span than asked for would be retargeted
             raise SettingsError(
                 f"{spec.motion_path}: motion: --span {start:g}:{stop:g} starts after the take ends "
-                f"({motion.duration:.2f} s)"
+                f"({full:.2f} s)"
             )
-        full = motion.duration
         motion = motion.crop(start, min(stop, full))
         if stop > full:
             kept = f"{start:g}-{full:.2f} s"

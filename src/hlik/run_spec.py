@@ -47,8 +47,8 @@ class RunSpec:
         placement: Placement rule or ``X,Y,YAW[,Z]`` (None: the robot's), ``optimize`` included.
         scale: Subject scale, a factor or ``auto`` (None: the robot's ``subject_scale``).
         rate: Resample the motion to this rate, Hz; 0 keeps the recorded rate.
-        span: ``(start, stop)`` s after the first frame to keep (start at most half the take,
-            stop at most its end); None: all of it.
+        span: ``(start, stop)`` s after the first frame to keep (a start at or after the take's
+            end is refused, a stop after it is cut there); None: all of it.
         time_scale: Play the (cropped) motion this many times as long, 2: at half its speed
             (:data:`TIME_SCALE_RANGE`); 1: as recorded.
         corpus: Corpus folder the criteria are learned from (None: ``learn``'s default).

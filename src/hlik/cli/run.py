@@ -3,7 +3,6 @@ trajectory, print the summary and the warnings."""
 
 from __future__ import annotations
 
-import os
 import shlex
 from collections.abc import Sequence
 from pathlib import Path
@@ -12,7 +11,7 @@ from typing import TYPE_CHECKING, Annotated
 import typer
 
 from hlik.util.errors import HlikError
-from hlik.util.paths import DEMO
+from hlik.util.paths import DEMO, no_shared_takes
 
 if TYPE_CHECKING:  # imported where used: `hlik --help` stays quick
     from hlik.pipeline import RunResult
@@ -377,19 +376,11 @@ def _stack_label(stem: str, name: str) -> str:
     return stem if name == stem else f"{stem}_{name}"
 
 
-def _no_corpus() -> str:
-    """Why the demo was fallen back on: HLIK_DATA named where it holds no KIT takes."""
-    data = os.environ.get("HLIK_DATA")
-    if data:
-        return f"no corpus of recorded motion found: HLIK_DATA={data} holds no kit_bimanual takes"
-    return "no corpus of recorded motion found"
-
-
 def _corpus_label(corpus: Path | None, files: Sequence[str], source: str = "") -> str:
     """``the bundled demo (demo_pour_wipe.xml, chosen by HLIK_CORPUS)``, ``... (demo_pour_wipe.xml,
     no corpus of recorded motion found)`` or ``DIR (n files, from HLIK_CORPUS)``."""
     if corpus is None:
-        why = f"chosen by {source}" if source else _no_corpus()
+        why = f"chosen by {source}" if source else no_shared_takes()
         return f"the bundled demo ({', '.join(files)}, {why})"
     count = f"{len(files)} file" + ("s" if len(files) != 1 else "")
     return f"{corpus} ({count}" + (f", from {source})" if source else ")")

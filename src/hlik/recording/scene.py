@@ -171,7 +171,7 @@ def _log_paths(
         static=True,
     )
     if show_labels:
-        finite = [p[np.all(np.isfinite(p), axis=1)] for p in (pos[:, i] for i in range(len(SIDES)))]
+        finite = [pos[:, i][np.all(np.isfinite(pos[:, i]), axis=1)] for i in range(len(SIDES))]
         above = [[*np.mean(p[:, :2], axis=0), p[:, 2].max() + LABEL_LIFT] for p in finite if len(p)]
         if len(above) == len(SIDES):
             rec.log(

@@ -92,6 +92,15 @@ def shared_takes() -> Path | None:
     return folder if folder.is_dir() else None
 
 
+def no_shared_takes() -> str:
+    """Why :func:`shared_takes` found none, for a summary line: where ``HLIK_DATA`` is set, that
+    it holds no takes (a mistyped one is named, not replaced)."""
+    data = os.environ.get("HLIK_DATA")
+    if data:
+        return f"no corpus of recorded motion found: HLIK_DATA={data} holds no kit_bimanual takes"
+    return "no corpus of recorded motion found"
+
+
 def shared_corpus() -> Path | None:
     """:func:`shared_takes` where it holds MMM takes (``*.xml``)."""
     folder = shared_takes()
