@@ -197,6 +197,27 @@ def test_the_band_keeps_reachable_hands_on_target_while_the_criteria_shape_the_a
     assert errors["band"][2] > 0.05, errors
 
 
+@pytest.mark.parametrize("name", ROBOTS)
+def test_hands_first_keeps_the_hands_of_the_plain_qp_while_the_criteria_move_the_arm(takes, name):
+    """``hands_first``: the same strong criteria that turn the hands off their reachable targets in
+    the weighted QP leave them as the QP without criteria does (within 1 mm and 0.3 deg), while the
+    arm moves away from that QP's (the criteria act in the hands' null space)."""
+    r = load_robot(name)
+    motion, targets, placement = reachable_stretch(r, takes[0], 2.0, 2.5)
+    plain = QPSettings(position_cost=10.0, orientation_cost=1.0)
+    strong = replace(plain, criteria=("SYN", "HJA_r"), criterion_cost=1.0)
+    runs = {}
+    first = replace(strong, hands_first=True)
+    for label, settings in (("plain", plain), ("weighted", strong), ("first", first)):
+        q, result = solve_problem(qp.solve, r, motion, targets, placement, settings, learned=learn(r))
+        assert not result.diagnostics.failed.any()
+        runs[label] = (q, *hand_errors(r, q, targets))
+    assert runs["weighted"][1] > runs["plain"][1] + 0.005 or runs["weighted"][2] > runs["plain"][2] + 0.05
+    assert runs["first"][1] <= runs["plain"][1] + 0.001, (runs["first"][1:], runs["plain"][1:])
+    assert runs["first"][2] <= runs["plain"][2] + np.radians(0.3), (runs["first"][1:], runs["plain"][1:])
+    assert np.abs(runs["first"][0] - runs["plain"][0]).max() > 0.05
+
+
 def test_targets_out_of_the_band_s_reach_lag_without_failing(takes):
     """Targets 1.5 m beyond reach: the band cannot be met; each step comes as near it as the body's
     rows allow, no frame fails, the limits hold, and the hands stay as near the targets as without

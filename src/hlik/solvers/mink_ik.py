@@ -19,12 +19,14 @@ import mink
 import numpy as np
 
 from hlik.criteria.base import Sample
+from hlik.criteria.functional import fORI, fORI_off, fPOS, fPOS_off
 from hlik.problem.problem import Problem
 from hlik.robot.model import SIDES
 from hlik.solvers.base import SolverResult
 from hlik.solvers.frames import (
     FrameResult,
     JointBox,
+    StepConstraints,
     constrained_steps,
     iterate,
     limit_rows,
@@ -35,6 +37,7 @@ from hlik.solvers.frames import (
 from hlik.solvers.limits import MotionLimits
 from hlik.solvers.mink_tasks import CriterionTask, HandBandLimit, SelfCollisionLimit, StateCache
 from hlik.solvers.preview import PathTask
+from hlik.solvers.qp_backend import solve_qp
 from hlik.solvers.settings import LimitSettings
 
 
@@ -64,6 +67,11 @@ class MinkSolver:
         first_tasks: The first frame's tasks (default: ``tasks``), e.g. without the criteria of
             motion, which have no past there.
         progress: Called with each frame index as it is solved.
+        posture: Tasks (among ``tasks`` and ``first_tasks``) that shape the arms after the hands,
+            a strict priority: each step first solves the other tasks alone, then adds these
+            and keeps what that first step does to the hands (every hand task's ``J dq``, within
+            :data:`HELD`), so that they act in the hands' null space only
+            (:func:`hands_first_step`). Empty: one weighted QP of every task.
 
     Where no step keeps every row, the collision rows give way first (missed as little as the rest
     allows), then the box's torque rows, and last ``limits``' rows, in a frame then reported failed
@@ -91,7 +99,9 @@ class MinkSolver:
         collision_margin: float = 0.01,
         collision_detect: float = 0.10,
         collision_gain: float = 0.5,
+        posture: Sequence[mink.Task] = (),
     ):
+        self.posture = {id(t) for t in posture}
         self.progress = progress
         self.tasks, self.limits = list(tasks), list(limits)
         self.first_tasks = list(first_tasks) if first_tasks is not None else self.tasks
@@ -135,7 +145,15 @@ class MinkSolver:
                 a_col, b_col = limit_rows([collision] if collision else [], config, sample.dt, n)
                 a_band, b_band = limit_rows(band, config, sample.dt, n)
                 tries = constrained_steps(box, x, self.max_step, a_col, b_col, a_band, b_band, a_hard, b_hard)
-                dq, taken = solve_step(objective.P, objective.q, tries, self.solver, len(b_band))
+                if self.posture:
+                    first = [t for t in tasks if id(t) not in self.posture]
+                    hands_only = mink.build_ik(config, first, sample.dt, self.damping, limits=[])
+                    dq, taken = solve_step(hands_only.P, hands_only.q, tries, self.solver, len(b_band))
+                    if dq is not None and taken is not None:
+                        held = hand_rows(config, first)
+                        dq = hands_first_step(objective.P, objective.q, dq, taken, held, self.solver)
+                else:
+                    dq, taken = solve_step(objective.P, objective.q, tries, self.solver, len(b_band))
                 if taken is not None and taken.misses_limits:
                     nonlocal missed
                     missed = True
@@ -160,3 +178,42 @@ class MinkSolver:
                 task.set_sample(sample)
             elif isinstance(task, PathTask):
                 task.at(k)
+
+
+# rad or m per step: how far the second level of a hands-first step may move a hand task's rows
+# (J dq) from the first level's; roundoff room, so that the second QP is feasible where the first was
+HELD = 1e-5
+
+
+def hand_rows(config: mink.Configuration, tasks: Sequence[mink.Task]) -> np.ndarray:
+    """(k, n) the Jacobians of the hand tasks among ``tasks``: the :class:`CriterionTask`\\ s on a
+    target term (fPOS, fORI and their relative forms) and mink ``FrameTask``\\ s on a TCP site."""
+    rows = [np.zeros((0, config.model.nv))]
+    for task in tasks:
+        if isinstance(task, CriterionTask) and isinstance(task.term, fPOS | fORI | fPOS_off | fORI_off):
+            rows.append(task.compute_jacobian(config))
+        elif isinstance(task, mink.FrameTask) and task.frame_name in {f"{s}_tcp" for s in SIDES}:
+            rows.append(task.compute_jacobian(config))
+    return np.vstack(rows)
+
+
+def hands_first_step(
+    hessian: np.ndarray,
+    gradient: np.ndarray,
+    first: np.ndarray,
+    taken: StepConstraints,
+    held: np.ndarray,
+    solver: str,
+) -> np.ndarray:
+    """The second level of a hands-first step: the step (n,) minimising the whole stack's
+    ``1/2 dq' H dq + g' dq`` under the constraints the first level's step ``first`` met
+    (``taken``), with the hands' rows ``held`` (k, n) moving as in ``first`` (within
+    :data:`HELD`): the posture tasks act in the hands' null space. ``first`` where that QP fails."""
+    if not len(held):
+        return first
+    target = held @ first
+    rows = np.vstack([taken.rows, held, -held])
+    bound = np.concatenate([taken.bound, target + HELD, -target + HELD])
+    soft = None if taken.soft is None else np.concatenate([taken.soft, np.zeros(2 * len(held))])
+    dq = solve_qp(hessian, gradient, taken.lower, taken.upper, solver, rows, bound, soft)
+    return first if dq is None or not np.all(np.isfinite(dq)) else dq

@@ -21,10 +21,10 @@ import numpy as np
 from hlik.criteria import registry, unified
 from hlik.criteria.base import Term
 from hlik.criteria.elbows import ElbowsAhead
-from hlik.criteria.functional import target_terms
+from hlik.criteria.functional import fORI, fORI_off, fPOS, fPOS_off, target_terms
 from hlik.criteria.joints import TrunkUpright
 from hlik.criteria.learned import Learned
-from hlik.criteria.smoothness import smoothness_terms
+from hlik.criteria.smoothness import Smoothness, smoothness_terms
 from hlik.problem.problem import Problem
 from hlik.robot.model import Robot
 from hlik.solvers.base import ConfiguredSolver, SolverResult
@@ -34,6 +34,9 @@ from hlik.solvers.mink_ik import MinkSolver
 from hlik.solvers.mink_tasks import CriterionTask, HandBandLimit, StateCache
 from hlik.solvers.preview import PathTask, feasible_path
 from hlik.solvers.settings import QPSettings
+
+# the terms a hands-first QP (``hands_first``) solves before the criteria, trunk and elbow terms
+HANDS_FIRST = (fPOS, fORI, fPOS_off, fORI_off, Smoothness)
 
 
 def build_terms(
@@ -84,12 +87,19 @@ def build_solver(
     :class:`~hlik.solvers.mink_tasks.CriterionTask`, the first frame's stack as its own, the hands'
     band as a :class:`~hlik.solvers.mink_tasks.HandBandLimit`, and the stopping rule, step bound,
     damping, limits and collision margins of ``settings``; ``tasks`` and ``limits`` (mink's own,
-    or a user's) are added to every frame's."""
+    or a user's) are added to every frame's. With ``settings.hands_first`` every term but the
+    hands' and smoothness (and ``tasks``) is the solver's ``posture``, solved in the hands' null
+    space."""
     cache = StateCache(robot)
 
+    posture: list[mink.Task] = []
+
     def stack(*args) -> list[mink.Task]:
-        terms = build_terms(robot, settings, learned, *args)
-        return [*(CriterionTask(robot, t, cost, cache=cache) for t, cost in terms), *tasks]
+        weighted = build_terms(robot, settings, learned, *args)
+        terms = [(t, CriterionTask(robot, t, cost, cache=cache)) for t, cost in weighted]
+        # what shapes the arms after the hands: all but the hands' and the smoothness terms
+        posture.extend(task for t, task in terms if not isinstance(t, HANDS_FIRST))
+        return [*(task for _, task in terms), *tasks]
 
     band = settings.position_band > 0 or settings.orientation_band > 0
     return MinkSolver(
@@ -107,6 +117,7 @@ def build_solver(
         collision_margin=settings.collision_margin,
         collision_detect=settings.collision_detect,
         collision_gain=settings.collision_gain,
+        posture=posture if settings.hands_first else (),
     )
 
 

@@ -112,6 +112,9 @@ class QPSettings(SolverSettings):
             component by component within band / sqrt(3) (so its norm within band), as linear
             inequalities below the body's; where no step can meet them, as near as the body's rows
             let a step come (:func:`~hlik.solvers.frames.nearest_band`); the criteria act inside.
+        hands_first: A strict priority of the hands over the posture: each step first solves the
+            hands, smoothness and look-ahead alone, then adds the criteria, trunk and elbow terms
+            in the hands' null space (``MinkSolver``'s ``posture``); False: one weighted QP.
         self_collision: Keep every pair of the robot's collision geoms ``collision_margin`` apart
             (m), as linear inequalities on the step from their signed distances and gradients
             (the velocity damper of mink's ``CollisionAvoidanceLimit``: a pair closer than
@@ -137,6 +140,7 @@ class QPSettings(SolverSettings):
     elbow_allowance: float = 0.02
     position_band: float = 0.0
     orientation_band: float = 0.0
+    hands_first: bool = False
     # the look-ahead (issue 28; tasks/ee_pose.toml has the measurements)
     preview_cost: float = 3.0
     damping: float = 1e-6
