@@ -218,6 +218,31 @@ def test_hands_first_keeps_the_hands_of_the_plain_qp_while_the_criteria_move_the
     assert np.abs(runs["first"][0] - runs["plain"][0]).max() > 0.05
 
 
+def test_hands_first_puts_a_stack_s_own_mink_tasks_after_the_hands(takes):
+    """``--solver mink`` with a strong ``PostureTask`` (toward home) from a stack's ``[mink]``: it
+    pulls the weighted QP's hands off reachable targets; with ``hands_first`` the hands stay as
+    the QP without it keeps them (within 1 mm) and the arm still moves toward home (the task's
+    own measure, the squared distance)."""
+    from hlik.solvers import mink_stack
+    from hlik.solvers.settings import MinkSettings
+
+    r = load_robot("armar6")
+    motion, targets, placement = reachable_stretch(r, takes[0], 2.0, 2.5)
+    plain = MinkSettings(position_cost=10.0, orientation_cost=1.0)
+    posture = replace(plain, tasks=({"type": "PostureTask", "cost": 3.0},))
+    runs = {}
+    for label, settings in (
+        ("plain", plain),
+        ("weighted", posture),
+        ("first", replace(posture, hands_first=True)),
+    ):
+        q, _ = solve_problem(mink_stack.solve, r, motion, targets, placement, settings)
+        runs[label] = (q, *hand_errors(r, q, targets), np.mean(np.sum((q - r.home) ** 2, axis=1)))
+    assert runs["weighted"][1] > runs["plain"][1] + 0.01, runs["weighted"][1:]
+    assert runs["first"][1] <= runs["plain"][1] + 0.001, (runs["first"][1:], runs["plain"][1:])
+    assert runs["first"][3] < 0.95 * runs["plain"][3], (runs["first"][3], runs["plain"][3])  # 12.9 < 14.4
+
+
 def test_targets_out_of_the_band_s_reach_lag_without_failing(takes):
     """Targets 1.5 m beyond reach: the band cannot be met; each step comes as near it as the body's
     rows allow, no frame fails, the limits hold, and the hands stay as near the targets as without

@@ -186,15 +186,17 @@ HELD = 1e-5
 
 
 def hand_rows(config: mink.Configuration, tasks: Sequence[mink.Task]) -> np.ndarray:
-    """(k, n) the Jacobians of the hand tasks among ``tasks``: the :class:`CriterionTask`\\ s on a
-    target term (fPOS, fORI and their relative forms) and mink ``FrameTask``\\ s on a TCP site."""
-    rows = [np.zeros((0, config.model.nv))]
-    for task in tasks:
-        if isinstance(task, CriterionTask) and isinstance(task.term, fPOS | fORI | fPOS_off | fORI_off):
-            rows.append(task.compute_jacobian(config))
-        elif isinstance(task, mink.FrameTask) and task.frame_name in {f"{s}_tcp" for s in SIDES}:
-            rows.append(task.compute_jacobian(config))
-    return np.vstack(rows)
+    """(k, n) the Jacobians of the hand tasks among ``tasks`` (:func:`is_hand_task`)."""
+    rows = [t.compute_jacobian(config) for t in tasks if is_hand_task(t)]
+    return np.vstack([np.zeros((0, config.model.nv)), *rows])
+
+
+def is_hand_task(task: mink.Task) -> bool:
+    """A task on the hands' pose: a :class:`CriterionTask` on a target term (fPOS, fORI and their
+    relative forms) or a mink ``FrameTask`` on a TCP site."""
+    if isinstance(task, CriterionTask):
+        return isinstance(task.term, fPOS | fORI | fPOS_off | fORI_off)
+    return isinstance(task, mink.FrameTask) and task.frame_name in {f"{s}_tcp" for s in SIDES}
 
 
 def hands_first_step(

@@ -10,6 +10,7 @@ and two lists naming mink's classes with their parameters::
 A class whose constructor takes the model gets the robot's; a ``PostureTask`` aims at the robot's
 home unless ``target`` gives the configuration. hlik's own terms and limits
 come from :func:`hlik.solvers.qp.build_solver`: without extra tasks and limits, the QP itself.
+With ``hands_first = true`` the tasks act after the hands, in their null space, as the criteria do.
 """
 
 from __future__ import annotations

@@ -30,7 +30,7 @@ from hlik.robot.model import Robot
 from hlik.solvers.base import ConfiguredSolver, SolverResult
 from hlik.solvers.frames import FIRST_FRAME_SCENARIO, first_frame_terms
 from hlik.solvers.limits import MotionLimits
-from hlik.solvers.mink_ik import MinkSolver
+from hlik.solvers.mink_ik import MinkSolver, is_hand_task
 from hlik.solvers.mink_tasks import CriterionTask, HandBandLimit, StateCache
 from hlik.solvers.preview import PathTask, feasible_path
 from hlik.solvers.settings import QPSettings
@@ -87,9 +87,9 @@ def build_solver(
     :class:`~hlik.solvers.mink_tasks.CriterionTask`, the first frame's stack as its own, the hands'
     band as a :class:`~hlik.solvers.mink_tasks.HandBandLimit`, and the stopping rule, step bound,
     damping, limits and collision margins of ``settings``; ``tasks`` and ``limits`` (mink's own,
-    or a user's) are added to every frame's. With ``settings.hands_first`` every term but the
-    hands' and smoothness (and ``tasks``) is the solver's ``posture``, solved in the hands' null
-    space."""
+    or a user's) are added to every frame's. With ``settings.hands_first`` every term and task but
+    the hands', smoothness and the look-ahead is the solver's ``posture``, solved in the hands'
+    null space."""
     cache = StateCache(robot)
 
     posture: list[mink.Task] = []
@@ -99,6 +99,7 @@ def build_solver(
         terms = [(t, CriterionTask(robot, t, cost, cache=cache)) for t, cost in weighted]
         # what shapes the arms after the hands: all but the hands' and the smoothness terms
         posture.extend(task for t, task in terms if not isinstance(t, HANDS_FIRST))
+        posture.extend(t for t in tasks if not isinstance(t, PathTask) and not is_hand_task(t))
         return [*(task for _, task in terms), *tasks]
 
     band = settings.position_band > 0 or settings.orientation_band > 0
