@@ -1,5 +1,5 @@
 """``python -m hlik.cli``: the command line, as ``hlik``."""
 
-from hlik.cli import app
+from hlik.cli import main
 
-app()
+main()

@@ -40,6 +40,7 @@ def print_error(message: str) -> None:
 
 
 INTERRUPTED = 130  # exit code of a command ended by Ctrl-C (128 + SIGINT)
+TERMINATED = 143  # exit code of a command ended by SIGTERM (hlik.util.atomic.Termination)
 
 
 class _OneLineErrors(TyperGroup):

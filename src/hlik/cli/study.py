@@ -15,6 +15,7 @@ from rich.text import Text
 from hlik.cli.app import (
     INTERRUPTED,
     MOTION_FILES,
+    TERMINATED,
     CorpusOpt,
     console,
     one_line,
@@ -109,9 +110,6 @@ def study(
                 _stopped(e, out, n_cells)
                 raise
     _report(result)
-
-
-TERMINATED = 128 + 15  # exit code of a command ended by SIGTERM (hlik.util.atomic.Termination)
 
 
 def _stopped(stop: BaseException, out: Path, n_cells: int) -> None:
