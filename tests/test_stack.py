@@ -172,6 +172,19 @@ def test_cli_runs_every_solver_from_a_stack(takes, tmp_path, solver, extra):
     assert ("(relative)" in result.stdout) == ("relative_pose" in extra)  # scored as its stack says
 
 
+@pytest.mark.parametrize(("solver", "said"), [("qp", True), ("mink", True), ("slsqp", False)])
+def test_a_run_says_when_it_held_the_hands_first(takes, tmp_path, solver, said):
+    """``hands_first = true`` in ``[qp]`` (which ``[mink]`` starts from): the summary's solver row
+    says so (a new user could not tell it was on); SLSQP has no such setting, and says nothing."""
+    stack = tmp_path / "first.toml"
+    stack.write_text('name = "first"\ncriteria = ["SYN"]\n[qp]\nhands_first = true\n')
+    out = tmp_path / "r.rrd"
+    args = ["run", str(takes[4]), "--rate", "10", "--span", "1:3", "--robot", "armar6", "--solver", solver]
+    result = CliRunner().invoke(app, [*args, "--stack", str(stack), "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    assert ("the hands first (hands_first" in result.stdout) == said, result.stdout
+
+
 def test_cli_rejects_fd_gradients_outside_slsqp():
     result = CliRunner().invoke(app, ["run", "--solver", "qp", "--gradients", "fd"])
     assert result.exit_code == 2 and "--gradients fd is for --solver slsqp" in result.stderr
@@ -193,6 +206,19 @@ def test_switches_and_collision_settings_read_from_a_stack_file(tmp_path):
     jv = stack.settings("jv")
     assert jv.self_collision is False and jv.collision_margin == 0.03
     assert load_stack("ee_pose").settings("jv").self_collision is True
+
+
+@pytest.mark.parametrize("value", ["no", 0, 1, 1.0, None])
+@pytest.mark.parametrize("key", ["hands_first", "self_collision", "torque_limits", "acceleration_limits"])
+def test_a_switch_given_from_python_is_true_or_false(key, value):
+    """As a stack file's: ``hands_first="no"`` had turned the strict priority on (a new user)."""
+    from hlik.solvers.settings import JVSettings, SLSQPSettings
+
+    for settings in (QPSettings, SLSQPSettings, JVSettings):
+        if key in settings.__dataclass_fields__:
+            with pytest.raises(SettingsError, match=f"{settings.__name__}.{key} must be true or false"):
+                settings(**{key: value})
+    assert QPSettings(**{key: True}) != QPSettings(**{key: False})
 
 
 @pytest.mark.parametrize(

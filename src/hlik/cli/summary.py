@@ -60,8 +60,9 @@ def posture_line(p) -> str:
     )
 
 
-def run_summary(traj, motion, solve_time: float, ev) -> Table:
-    """The run's summary table, without the file names (printed after it, never wrapped)."""
+def run_summary(traj, motion, solve_time: float, ev, hands_first: bool = False) -> Table:
+    """The run's summary table, without the file names (printed after it, never wrapped);
+    ``hands_first``: the solver held the hands first (said on its row)."""
     import numpy as np
 
     from hlik.criteria.functional import relative_errors
@@ -84,7 +85,8 @@ def run_summary(traj, motion, solve_time: float, ev) -> Table:
     table.add_row(
         "solver",
         f"{d.n_failed} failed, {d.n_unconverged} unconverged (iteration cap; SLSQP: roundoff) of "
-        f"{traj.n_frames} frames; median {np.median(d.iterations):.0f} iterations/frame",
+        f"{traj.n_frames} frames; median {np.median(d.iterations):.0f} iterations/frame"
+        + ("; the hands first (hands_first: the criteria in their null space)" if hands_first else ""),
     )
     for i, side in enumerate(("left", "right")):
         table.add_row(

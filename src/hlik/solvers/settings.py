@@ -372,7 +372,8 @@ def check_settings(
     number in [1, :data:`MAX_COUNT`] (``counts``); the ``scenario``, the ``gamma`` table (criterion
     -> finite number ``>= 0``) and, where present, ``collision_detect > collision_margin``. Every
     weight (a field named ``<what>_cost``) is in [0, :data:`MAX_WEIGHT`], ``collision_margin``
-    ``>= 0`` and ``collision_detect > 0`` without being listed.
+    ``>= 0`` and ``collision_detect > 0`` without being listed, and every switch (a ``bool``
+    field) True or False.
 
     Raises:
         SettingsError: ``"<Class>.<field> must be ..., got <value>"`` for the first bad field
@@ -410,6 +411,10 @@ def check_settings(
         integral = isinstance(value, numbers.Integral) and not isinstance(value, bool)
         if not (integral and 1 <= int(value) <= MAX_COUNT):
             fail(key, f"a whole number in [1, {MAX_COUNT}]")
+    for f in dataclasses.fields(settings):  # type: ignore[arg-type]
+        # a switch given "no" or 0 from Python was taken as on or off by its truth
+        if f.type in ("bool", bool) and not isinstance(getattr(settings, f.name), bool):
+            fail(f.name, "true or false")
     _check_choices(settings, owner)
 
 
