@@ -109,6 +109,7 @@ def test_with_criteria_replaces_the_list():
         ("[qp]\ngamma = 3", "[qp.gamma] must be a table"),
         ("[qp]\nself_collision = 1", "qp.self_collision must be true or false"),
         ("colour = 'red'", "unknown key 'colour' in the top level"),
+        ("hands_first = true", "hands_first is a solver's setting: put it in [qp] or [mink]"),
         ("[qp.robot.armar6]\nspeed = 1.0", "unknown key 'speed' in [qp.robot.armar6]"),
         ("[qp.robot.armar6]\norientation_cost = 'x'", "qp.orientation_cost must be a number"),
         ("[qp.robot.armar6.gamma]\nSYN = 1.0", "unknown key 'gamma' in [qp.robot.armar6]"),

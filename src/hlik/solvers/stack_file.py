@@ -121,6 +121,10 @@ def load_stack(path: str | Path) -> Stack:
 
 def _parse(raw: dict, path: Path) -> Stack:
     allowed = {"name", "scenario", "criteria", "gamma", *SOLVER_TABLES}
+    for key in sorted(set(raw) - allowed):  # a solver's setting written above the tables
+        owners = [f"[{s}]" for s in SOLVER_TABLES if key in _field_names(s)]
+        if owners:
+            raise SettingsError(f"{path}: {key} is a solver's setting: put it in {' or '.join(owners)}")
     _check_keys(raw, allowed, path, "the top level")
     scenario = raw.get("scenario", "pose")
     if scenario not in SCENARIOS:
@@ -212,6 +216,11 @@ RENAMED = {
     "weight": "criterion_cost",
     "orientation_weight": "orientation_cost",
 }
+
+
+def _field_names(solver: str) -> set[str]:
+    """The settings a solver's table takes."""
+    return {f.name for f in dataclasses.fields(settings_class(solver))}
 
 
 def _check_keys(table: dict, allowed: set[str], path: Path, where: str) -> None:
