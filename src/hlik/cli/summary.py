@@ -89,10 +89,12 @@ def run_summary(traj, motion, solve_time: float, ev, hands_first: bool = False) 
         + ("; the hands first (hands_first: the criteria in their null space)" if hands_first else ""),
     )
     for i, side in enumerate(("left", "right")):
+        deg = np.degrees(fori[:, i])
         table.add_row(
             f"{side} hand",
             f"fPOS mean {100 * fpos[:, i].mean():.1f} cm, max {100 * fpos[:, i].max():.1f} cm; "
-            f"fORI mean {np.degrees(fori[:, i].mean()):.1f}°, max {np.degrees(fori[:, i].max()):.1f}°",
+            f"fORI mean {deg.mean():.1f}°, median {np.median(deg):.1f}°, "
+            f"p95 {np.percentile(deg, 95):.1f}°, max {deg.max():.1f}°",
         )
     speed = ev.max_speed_ratio
     speeds = (
