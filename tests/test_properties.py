@@ -182,3 +182,42 @@ def test_a_criterion_never_turns_a_reachable_hand_out_of_the_band(takes, robot, 
     q, _ = solve_problem(module.solve, r, motion, targets, placement, settings, learned=learn(r))
     pos, ori = hand_errors(r, q, targets)
     assert pos <= _BAND[0] + 1e-3 and ori <= _BAND[1] + 2e-3, (pos, np.degrees(ori))
+
+
+@settings(max_examples=6, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(
+    robot=st.sampled_from(["armar3", "armar6", "dual_panda"]),
+    criterion=st.sampled_from(["SYN", "HJA_r", "EEA", "SOA_x", "SOA_q", "HJL", "MAN_r", "SYN_r", "EEA_r"]),
+    start=st.floats(1.0, 4.0),
+)
+def test_held_hands_first_every_step_moves_the_hands_as_the_hands_alone_would(
+    takes, robot, criterion, start, monkeypatch
+):
+    """``hands_first``, any criterion strongly weighted, every limit on, a stretch of a real take:
+    in every QP step the hands' rows move as in the step of the hands alone (J dq within
+    ``HELD``), while the criterion changes the step. Over a stretch this is not the QP without
+    criteria: the posture the criterion chooses can leave the arm worse placed for the next
+    targets (README "A strict priority")."""
+    from dataclasses import replace
+
+    from conftest import reachable_stretch, solve_problem
+    from hlik import load_robot
+    from hlik.criteria.learned import learn
+    from hlik.solvers import mink_ik, qp
+
+    seen = []
+
+    def spy(hessian, gradient, first, taken, held, solver):
+        dq = second_level(hessian, gradient, first, taken, held, solver)
+        seen.append((np.abs(held @ (dq - first)).max(initial=0.0), np.abs(dq - first).max()))
+        return dq
+
+    second_level = mink_ik.hands_first_step
+    monkeypatch.setattr(mink_ik, "hands_first_step", spy)
+    r = load_robot(robot)
+    motion, targets, placement = reachable_stretch(r, takes[2], start, start + 0.05)
+    settings = replace(qp.QPSettings(), criteria=(criterion,), criterion_cost=1.0, hands_first=True)
+    solve_problem(qp.solve, r, motion, targets, placement, settings, learned=learn(r))
+    held, moved = np.array(seen).T
+    assert held.max() <= 1.5 * mink_ik.HELD, held.max()  # the QP solver's feasibility tolerance
+    assert moved.max() > 1e-4, moved.max()  # the criterion acts
