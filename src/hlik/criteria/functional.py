@@ -135,6 +135,10 @@ class fORI_off(Criterion):  # noqa: N801
     cost, cost_gradient = fPOS_off.cost, fPOS_off.cost_gradient
 
 
+# the terms on the hands' pose (their targets, or the relative pose of the hands)
+HAND_TERMS = (fPOS, fORI, fPOS_off, fORI_off)
+
+
 def target_terms(scenario: str) -> tuple[Criterion, Criterion]:
     """The position and orientation terms ``scenario`` tracks: the TCP poses (``pose``) or the
     relative pose of the hands (``relative``, paper Eqs. 3-4)."""

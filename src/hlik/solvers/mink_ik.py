@@ -19,7 +19,7 @@ import mink
 import numpy as np
 
 from hlik.criteria.base import Sample
-from hlik.criteria.functional import fORI, fORI_off, fPOS, fPOS_off
+from hlik.criteria.functional import HAND_TERMS
 from hlik.problem.problem import Problem
 from hlik.robot.model import SIDES
 from hlik.solvers.base import SolverResult
@@ -137,23 +137,23 @@ class MinkSolver:
             for limit in band:
                 limit.set_tasks(tasks)
             missed = False  # a step gave way on the caller's limits
+            first = [t for t in tasks if id(t) not in self.posture]  # every task without a posture
+            after = [t for t in tasks if id(t) in self.posture]
 
             def step(x: np.ndarray) -> np.ndarray | None:
                 config.update(x)
-                objective = mink.build_ik(config, tasks, sample.dt, self.damping, limits=[])
+                objective = mink.build_ik(config, first, sample.dt, self.damping, limits=[])
                 a_hard, b_hard = limit_rows(hard, config, sample.dt, n)
                 a_col, b_col = limit_rows([collision] if collision else [], config, sample.dt, n)
                 a_band, b_band = limit_rows(band, config, sample.dt, n)
                 tries = constrained_steps(box, x, self.max_step, a_col, b_col, a_band, b_band, a_hard, b_hard)
-                if self.posture:
-                    first = [t for t in tasks if id(t) not in self.posture]
-                    hands_only = mink.build_ik(config, first, sample.dt, self.damping, limits=[])
-                    dq, taken = solve_step(hands_only.P, hands_only.q, tries, self.solver, len(b_band))
-                    if dq is not None and taken is not None:
-                        held = hand_rows(config, first)
-                        dq = hands_first_step(objective.P, objective.q, dq, taken, held, self.solver)
-                else:
-                    dq, taken = solve_step(objective.P, objective.q, tries, self.solver, len(b_band))
+                dq, taken = solve_step(objective.P, objective.q, tries, self.solver, len(b_band))
+                if after and dq is not None and taken is not None:
+                    # the whole stack's objective: the first level's plus the posture's (each task's
+                    # rows evaluated once, the damping once)
+                    rest = mink.build_ik(config, after, sample.dt, 0.0, limits=[])
+                    whole = (objective.P + rest.P, objective.q + rest.q)
+                    dq = hands_first_step(*whole, dq, taken, hand_rows(config, first), self.solver)
                 if taken is not None and taken.misses_limits:
                     nonlocal missed
                     missed = True
@@ -195,7 +195,7 @@ def is_hand_task(task: mink.Task) -> bool:
     """A task on the hands' pose: a :class:`CriterionTask` on a target term (fPOS, fORI and their
     relative forms) or a mink ``FrameTask`` on a TCP site."""
     if isinstance(task, CriterionTask):
-        return isinstance(task.term, fPOS | fORI | fPOS_off | fORI_off)
+        return isinstance(task.term, HAND_TERMS)
     return isinstance(task, mink.FrameTask) and task.frame_name in {f"{s}_tcp" for s in SIDES}
 
 

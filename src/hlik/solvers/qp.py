@@ -21,7 +21,7 @@ import numpy as np
 from hlik.criteria import registry, unified
 from hlik.criteria.base import Term
 from hlik.criteria.elbows import ElbowsAhead
-from hlik.criteria.functional import fORI, fORI_off, fPOS, fPOS_off, target_terms
+from hlik.criteria.functional import HAND_TERMS, target_terms
 from hlik.criteria.joints import TrunkUpright
 from hlik.criteria.learned import Learned
 from hlik.criteria.smoothness import Smoothness, smoothness_terms
@@ -36,7 +36,7 @@ from hlik.solvers.preview import PathTask, feasible_path
 from hlik.solvers.settings import QPSettings
 
 # the terms a hands-first QP (``hands_first``) solves before the criteria, trunk and elbow terms
-HANDS_FIRST = (fPOS, fORI, fPOS_off, fORI_off, Smoothness)
+HANDS_FIRST = (*HAND_TERMS, Smoothness)
 
 
 def build_terms(
