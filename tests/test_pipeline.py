@@ -40,6 +40,9 @@ from hlik.util.errors import HlikError
         ({"rate": float("nan")}, "--rate must be positive"),
         ({"placement": "nan,0,0"}, "must be finite numbers"),
         ({"stack": "no_such_stack"}, "no_such_stack"),
+        ({"stack": None}, "RunSpec.stack must be a name or a path, got None"),
+        ({"robot": 6}, "RunSpec.robot must be a name or a path"),
+        ({"solver": "qp", "criteria": "SYN"}, "RunSpec.criteria must be a sequence of names"),
     ],
 )
 def test_a_bad_setting_fails_in_one_line_before_anything_is_read(change, said, monkeypatch, cut_take):

@@ -8,6 +8,7 @@ the CLI's usage errors take a fraction of a second. :func:`hlik.pipeline.run` ru
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -96,6 +97,13 @@ class RunSpec:
         Raises:
             HlikError: one line naming the setting (or file) and what it accepts.
         """
+        for name in ("robot", "stack", "motion", "corpus", "metric"):
+            value = getattr(self, name)
+            optional = value is None and name not in ("robot", "stack")
+            if not (optional or isinstance(value, str | os.PathLike)):
+                raise SettingsError(f"RunSpec.{name} must be a name or a path, got {value!r}")
+        if isinstance(self.criteria, str):  # ("SYN") for ("SYN",) read as S, Y, N
+            raise SettingsError(f"RunSpec.criteria must be a sequence of names, got {self.criteria!r}")
         solver = check_solver(self.solver)
         if self.gradients not in GRADIENTS:
             raise SettingsError(f"unknown gradients {self.gradients!r}; choose analytic or fd")

@@ -143,7 +143,7 @@ def _parse(raw: dict, path: Path) -> Stack:
         allowed = set(fields) - {"criteria", "scenario"}
         _check_keys(table, allowed | {ROBOT_TABLE}, path, f"[{solver}]")
         solvers[solver] = MappingProxyType(
-            {k: _setting(solver, k, v, fields, path) for k, v in table.items() if k != ROBOT_TABLE}
+            {k: _setting(solver, solver, k, v, fields, path) for k, v in table.items() if k != ROBOT_TABLE}
         )
         own = table.get(ROBOT_TABLE, {})
         if not isinstance(own, dict) or not all(isinstance(t, dict) for t in own.values()):
@@ -153,7 +153,10 @@ def _parse(raw: dict, path: Path) -> Stack:
         robots[solver] = MappingProxyType(
             {
                 robot: MappingProxyType(
-                    {k: _setting(solver, k, v, fields, path) for k, v in overrides.items()}
+                    {
+                        k: _setting(solver, f"{solver}.{ROBOT_TABLE}.{robot}", k, v, fields, path)
+                        for k, v in overrides.items()
+                    }
                 )
                 for robot, overrides in own.items()
             }
@@ -180,11 +183,11 @@ def _parse(raw: dict, path: Path) -> Stack:
     return stack
 
 
-def _setting(solver: str, key: str, value: object, fields: dict, path: Path) -> object:
-    """One key of a solver's table, checked: ``gamma``, mink's ``tasks``/``limits``, or a value of its
+def _setting(solver: str, table: str, key: str, value: object, fields: dict, path: Path) -> object:
+    """One key of a solver's ``[table]``, checked: ``gamma``, mink's ``tasks``/``limits``, or a value of its
     field's kind."""
     if key == "gamma":
-        return _gamma(value, path, f"{solver}.gamma")
+        return _gamma(value, path, f"{table}.gamma")
     if solver == "mink" and key in ("tasks", "limits"):
         from hlik.solvers.mink_specs import check_specs
 
@@ -192,7 +195,7 @@ def _setting(solver: str, key: str, value: object, fields: dict, path: Path) -> 
             return check_specs(value, key)
         except SettingsError as e:
             raise SettingsError(f"{path}: [mink] {e}") from None
-    return _value(value, fields[key].default, path, f"{solver}.{key}")
+    return _value(value, fields[key].default, path, f"[{table}] {key}")
 
 
 def _gamma(table: object, path: Path, where: str) -> Mapping[str, float]:
@@ -201,7 +204,7 @@ def _gamma(table: object, path: Path, where: str) -> Mapping[str, float]:
         raise SettingsError(f"{path}: [{where}] must be a table of criterion = number")
     for name in table:
         check_criteria((name,), f"{path}: [{where}]")
-    values = {name: _number(v, path, f"{where}.{name}") for name, v in table.items()}
+    values = {name: _number(v, path, f"[{where}] {name}") for name, v in table.items()}
     for name, v in values.items():
         if not (math.isfinite(v) and 0 <= v <= MAX_WEIGHT):
             rule = f"a finite number in [0, {MAX_WEIGHT:g}]"
