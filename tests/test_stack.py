@@ -187,6 +187,17 @@ def test_a_run_says_when_it_held_the_hands_first(takes, tmp_path, solver, said):
     assert ("the hands first (hands_first" in result.stdout) == said, result.stdout
 
 
+@pytest.mark.parametrize(("robot", "said"), [("dual_panda", True), ("armar6", False)])
+def test_a_run_says_when_its_look_ahead_held_the_hands_first(takes, tmp_path, robot, said):
+    """``ee_pose`` sets ``preview_hands_first`` for 2-Panda only (``[qp.robot.dual_panda]``): the
+    summary's solver row says so there, and not on ARMAR-6."""
+    out = tmp_path / "r.rrd"
+    args = ["run", str(takes[4]), "--rate", "10", "--span", "1:2", "--robot", robot, "--solver", "qp"]
+    result = CliRunner().invoke(app, [*args, "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    assert ("look-ahead's path from the hands first" in result.stdout) == said, result.stdout
+
+
 def test_cli_rejects_fd_gradients_outside_slsqp():
     result = CliRunner().invoke(app, ["run", "--solver", "qp", "--gradients", "fd"])
     assert result.exit_code == 2 and "--gradients fd is for --solver slsqp" in result.stderr

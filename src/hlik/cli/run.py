@@ -31,7 +31,7 @@ from hlik.cli.app import (
     warn,
 )
 from hlik.cli.outputs import check_outputs, file_stem, write_outputs
-from hlik.cli.summary import run_summary
+from hlik.cli.summary import PRIORITY, run_summary
 from hlik.robot.files import RobotDefaults, robot_defaults
 
 RobotOpt = Annotated[
@@ -248,7 +248,7 @@ def _report(result: RunResult, rrd: Path, npz: Path, corpus_source: str) -> None
     # Lines naming a file or a command are printed whole, each on its own line: a table cell would
     # break a path at the console's width (80 columns when piped).
     console.print(f"{spec.motion_path.stem} -> {result.robot.name} ({traj.solver})", soft_wrap=True)
-    print_table(run_summary(traj, result.motion, result.solve_seconds, ev, _hands_first(result)))
+    print_table(run_summary(traj, result.motion, result.solve_seconds, ev, _priority(result)))
     size = lambda path: f"{path.stat().st_size / 1e6:.1f} MB"  # noqa: E731
     console.print(f"recording: {rrd} ({size(rrd)})", soft_wrap=True)
     console.print(f"trajectory: {npz} ({size(npz)})", soft_wrap=True)
@@ -292,12 +292,17 @@ def _export(result: RunResult, npz: Path, fmt: str) -> None:
     console.print(f"exported: {written} ({fmt})", soft_wrap=True)
 
 
-def _hands_first(result: RunResult) -> bool:
-    """Whether the run's solver held the hands first (``hands_first``, the QP's and mink's)."""
+def _priority(result: RunResult) -> str:
+    """How the run's solver ranked the hands: ``hands_first``, ``preview_hands_first`` (the QP's
+    and mink's, the latter with the look-ahead on) or ``weighted``."""
     from hlik.pipeline import solver_settings
 
     settings = solver_settings(result.spec, result.spec.task_stack(), result.robot.name)
-    return bool(getattr(settings, "hands_first", False))
+    if getattr(settings, "hands_first", False):
+        return "hands_first"
+    if getattr(settings, "preview_hands_first", False) and getattr(settings, "preview_cost", 0.0) > 0:
+        return "preview_hands_first"
+    return "weighted"
 
 
 def _settings(result: RunResult, layout: str) -> dict[str, str]:
@@ -306,7 +311,7 @@ def _settings(result: RunResult, layout: str) -> dict[str, str]:
     return {
         "stack": str(spec.stack),
         "criteria": ", ".join(spec.task_stack().criteria) or "-",
-        "priority": "the hands first (hands_first)" if _hands_first(result) else "weighted",
+        "priority": PRIORITY[_priority(result)],
         "scenario": result.scenario,
         "placement": spec.placement or result.robot.placement,
         "corpus": _corpus_label(spec.corpus, result.learned.corpus),

@@ -60,9 +60,18 @@ def posture_line(p) -> str:
     )
 
 
-def run_summary(traj, motion, solve_time: float, ev, hands_first: bool = False) -> Table:
+# what the summary's solver row and the recording's result panel say of each priority
+PRIORITY = {
+    "hands_first": "the hands first (hands_first: the criteria in their null space)",
+    "preview_hands_first": "the look-ahead's path from the hands first (preview_hands_first)",
+    "weighted": "weighted",
+}
+
+
+def run_summary(traj, motion, solve_time: float, ev, priority: str = "weighted") -> Table:
     """The run's summary table, without the file names (printed after it, never wrapped);
-    ``hands_first``: the solver held the hands first (said on its row)."""
+    ``priority``: how the solver ranked the hands (``hlik.cli.run.PRIORITY``'s keys; said on its
+    row unless ``weighted``)."""
     import numpy as np
 
     from hlik.criteria.functional import relative_errors
@@ -86,7 +95,7 @@ def run_summary(traj, motion, solve_time: float, ev, hands_first: bool = False) 
         "solver",
         f"{d.n_failed} failed, {d.n_unconverged} unconverged (iteration cap; SLSQP: roundoff) of "
         f"{traj.n_frames} frames; median {np.median(d.iterations):.0f} iterations/frame"
-        + ("; the hands first (hands_first: the criteria in their null space)" if hands_first else ""),
+        + ("" if priority == "weighted" else f"; {PRIORITY[priority]}"),
     )
     for i, side in enumerate(("left", "right")):
         deg = np.degrees(fori[:, i])

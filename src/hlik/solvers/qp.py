@@ -133,12 +133,16 @@ def solve(
     diagnostics count the QP steps per frame. With ``settings.preview_cost`` the take is solved
     twice (:mod:`hlik.solvers.preview`): first without the acceleration and torque limits, then
     with every limit and a :class:`~hlik.solvers.preview.PathTask` toward the nearest path that
-    keeps them; the diagnostics are the second pass's."""
+    keeps them; the diagnostics are the second pass's. ``settings.preview_hands_first`` holds the
+    hands first in the first pass only."""
     robot, learned = problem.robot, problem.learned
     if settings.preview_cost <= 0 or problem.n_frames < 3:
         return build_solver(robot, settings, learned, tasks, limits, progress)(problem)
     half = (lambda k: progress(k // 2)) if progress else None
-    free = replace(settings, acceleration_limits=False, torque_limits=False, preview_cost=0.0)
+    hands_first = settings.hands_first or settings.preview_hands_first
+    free = replace(
+        settings, acceleration_limits=False, torque_limits=False, preview_cost=0.0, hands_first=hands_first
+    )
     unlimited = build_solver(robot, free, learned, tasks, limits, half)(problem)
     path = feasible_path(unlimited.q, MotionLimits.of(robot, settings), problem.dt)
     second = (lambda k: progress((problem.n_frames + k) // 2)) if progress else None

@@ -102,6 +102,10 @@ class QPSettings(SolverSettings):
         preview_cost: Weight per rad toward the look-ahead path (:mod:`hlik.solvers.preview`:
             the take retargeted without acceleration and torque limits, then the nearest path that
             keeps them, started early; 0: none, one pass). Above 0 the take is solved twice.
+        preview_hands_first: The look-ahead's first pass holds the hands first (as
+            ``hands_first``), so its path follows the hands and the second, weighted pass shapes
+            the arm toward it; False: the first pass is weighted as the second. ``hands_first``
+            implies it.
         damping: Levenberg-Marquardt damping of every step.
         max_iter: QP steps per frame at most (the first frame gets ten times more).
         tol: A frame has converged when no joint moves more than this in a step, rad.
@@ -143,6 +147,8 @@ class QPSettings(SolverSettings):
     hands_first: bool = False
     # the look-ahead (issue 28; tasks/ee_pose.toml has the measurements)
     preview_cost: float = 3.0
+    # off but on 2-Panda (tasks/ee_pose.toml, README "A strict priority" have the measurements)
+    preview_hands_first: bool = False
     damping: float = 1e-6
     max_iter: int = 20
     tol: float = 1e-4
