@@ -64,7 +64,7 @@ def test_a_run_is_its_stages(cut_take):
     motion = scale_subject(load_motion(cut_take, rate=100.0).crop(1.0, 1.4), robot)
     learned = learn(robot)
     where = placement_from_spec(robot.placement, robot, motion)
-    settings = load_stack("ee_pose").with_criteria(["SYN"]).settings("qp")
+    settings = load_stack("ee_pose").with_criteria(["SYN"]).settings("qp", robot.name)  # its own table
     traj = retarget(motion, robot, get_solver("qp", settings), where, learned)
     ev = evaluate(traj, robot, learned)
     np.testing.assert_array_equal(result.trajectory.q, traj.q)
