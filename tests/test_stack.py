@@ -187,15 +187,16 @@ def test_a_run_says_when_it_held_the_hands_first(takes, tmp_path, solver, said):
     assert ("the hands first (hands_first" in result.stdout) == said, result.stdout
 
 
-@pytest.mark.parametrize(("robot", "said"), [("dual_panda", True), ("armar6", False)])
-def test_a_run_says_when_its_look_ahead_held_the_hands_first(takes, tmp_path, robot, said):
+@pytest.mark.parametrize(("robot", "said", "pull"), [("dual_panda", True, 8), ("armar6", False, 3)])
+def test_a_run_says_when_its_look_ahead_held_the_hands_first(takes, tmp_path, robot, said, pull):
     """``ee_pose`` sets ``preview_hands_first`` for 2-Panda only (``[qp.robot.dual_panda]``): the
-    summary's solver row says so there, and not on ARMAR-6."""
+    summary's solver row says so there, and not on ARMAR-6; and it names each robot's pull."""
     out = tmp_path / "r.rrd"
     args = ["run", str(takes[4]), "--rate", "10", "--span", "1:2", "--robot", robot, "--solver", "qp"]
     result = CliRunner().invoke(app, [*args, "--out", str(out)])
     assert result.exit_code == 0, result.output
     assert ("look-ahead's path from the hands first" in result.stdout) == said, result.stdout
+    assert f"look-ahead pulled at {pull} per rad" in result.stdout, result.stdout
 
 
 def test_cli_rejects_fd_gradients_outside_slsqp():

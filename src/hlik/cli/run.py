@@ -248,7 +248,7 @@ def _report(result: RunResult, rrd: Path, npz: Path, corpus_source: str) -> None
     # Lines naming a file or a command are printed whole, each on its own line: a table cell would
     # break a path at the console's width (80 columns when piped).
     console.print(f"{spec.motion_path.stem} -> {result.robot.name} ({traj.solver})", soft_wrap=True)
-    print_table(run_summary(traj, result.motion, result.solve_seconds, ev, _priority(result)))
+    print_table(run_summary(traj, result.motion, result.solve_seconds, ev, _solver_note(result)))
     size = lambda path: f"{path.stat().st_size / 1e6:.1f} MB"  # noqa: E731
     console.print(f"recording: {rrd} ({size(rrd)})", soft_wrap=True)
     console.print(f"trajectory: {npz} ({size(npz)})", soft_wrap=True)
@@ -303,6 +303,20 @@ def _priority(result: RunResult) -> str:
     if getattr(settings, "preview_hands_first", False) and getattr(settings, "preview_cost", 0.0) > 0:
         return "preview_hands_first"
     return "weighted"
+
+
+def _solver_note(result: RunResult) -> str:
+    """What the summary's solver row adds: the priority unless weighted, and the look-ahead's pull
+    (the QP's and mink's; it differs per robot in ``ee_pose``)."""
+    from hlik.pipeline import solver_settings
+
+    settings = solver_settings(result.spec, result.spec.task_stack(), result.robot.name)
+    priority = _priority(result)
+    notes = [] if priority == "weighted" else [PRIORITY[priority]]
+    pull = getattr(settings, "preview_cost", 0.0)
+    if pull > 0 and result.motion.n_frames >= 3:
+        notes.append(f"look-ahead pulled at {pull:g} per rad (preview_cost)")
+    return "; ".join(notes)
 
 
 def _settings(result: RunResult, layout: str) -> dict[str, str]:

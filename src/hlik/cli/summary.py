@@ -68,10 +68,9 @@ PRIORITY = {
 }
 
 
-def run_summary(traj, motion, solve_time: float, ev, priority: str = "weighted") -> Table:
+def run_summary(traj, motion, solve_time: float, ev, solver_note: str = "") -> Table:
     """The run's summary table, without the file names (printed after it, never wrapped);
-    ``priority``: how the solver ranked the hands (``hlik.cli.run.PRIORITY``'s keys; said on its
-    row unless ``weighted``)."""
+    ``solver_note``: what the solver row adds (its priority and look-ahead), empty: nothing."""
     import numpy as np
 
     from hlik.criteria.functional import relative_errors
@@ -95,7 +94,7 @@ def run_summary(traj, motion, solve_time: float, ev, priority: str = "weighted")
         "solver",
         f"{d.n_failed} failed, {d.n_unconverged} unconverged (iteration cap; SLSQP: roundoff) of "
         f"{traj.n_frames} frames; median {np.median(d.iterations):.0f} iterations/frame"
-        + ("" if priority == "weighted" else f"; {PRIORITY[priority]}"),
+        + (f"; {solver_note}" if solver_note else ""),
     )
     for i, side in enumerate(("left", "right")):
         deg = np.degrees(fori[:, i])
