@@ -292,12 +292,9 @@ def _export(result: RunResult, npz: Path, fmt: str) -> None:
     console.print(f"exported: {written} ({fmt})", soft_wrap=True)
 
 
-def _priority(result: RunResult) -> str:
-    """How the run's solver ranked the hands: ``hands_first``, ``preview_hands_first`` (the QP's
-    and mink's, the latter with the look-ahead on) or ``weighted``."""
-    from hlik.pipeline import solver_settings
-
-    settings = solver_settings(result.spec, result.spec.task_stack(), result.robot.name)
+def _priority(settings: object) -> str:
+    """How a run's solver ``settings`` rank the hands: ``hands_first``, ``preview_hands_first`` (the
+    QP's and mink's, the latter with the look-ahead on) or ``weighted``."""
     if getattr(settings, "hands_first", False):
         return "hands_first"
     if getattr(settings, "preview_hands_first", False) and getattr(settings, "preview_cost", 0.0) > 0:
@@ -308,15 +305,20 @@ def _priority(result: RunResult) -> str:
 def _solver_note(result: RunResult) -> str:
     """What the summary's solver row adds: the priority unless weighted, and the look-ahead's pull
     (the QP's and mink's; it differs per robot in ``ee_pose``)."""
-    from hlik.pipeline import solver_settings
-
-    settings = solver_settings(result.spec, result.spec.task_stack(), result.robot.name)
-    priority = _priority(result)
+    settings = _solver_settings(result)
+    priority = _priority(settings)
     notes = [] if priority == "weighted" else [PRIORITY[priority]]
     pull = getattr(settings, "preview_cost", 0.0)
     if pull > 0 and result.motion.n_frames >= 3:
         notes.append(f"look-ahead pulled at {pull:g} per rad (preview_cost)")
     return "; ".join(notes)
+
+
+def _solver_settings(result: RunResult) -> object:
+    """The settings the run's solver ran with (its stack's table for the robot, and the spec's)."""
+    from hlik.pipeline import solver_settings
+
+    return solver_settings(result.spec, result.spec.task_stack(), result.robot.name)
 
 
 def _settings(result: RunResult, layout: str) -> dict[str, str]:
@@ -325,7 +327,7 @@ def _settings(result: RunResult, layout: str) -> dict[str, str]:
     return {
         "stack": str(spec.stack),
         "criteria": ", ".join(spec.task_stack().criteria) or "-",
-        "priority": PRIORITY[_priority(result)],
+        "priority": PRIORITY[_priority(_solver_settings(result))],
         "scenario": result.scenario,
         "placement": spec.placement or result.robot.placement,
         "corpus": _corpus_label(spec.corpus, result.learned.corpus),
