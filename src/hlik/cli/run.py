@@ -304,13 +304,17 @@ def _priority(settings: object) -> str:
 
 def _solver_note(result: RunResult) -> str:
     """What the summary's solver row adds: the priority unless weighted, and the look-ahead's pull
-    (the QP's and mink's; it differs per robot in ``ee_pose``)."""
+    (the QP's, mink's and SLSQP's; it differs per robot in ``ee_pose``)."""
+    from hlik.solvers.settings import SLSQPSettings
+
     settings = _solver_settings(result)
     priority = _priority(settings)
     notes = [] if priority == "weighted" else [PRIORITY[priority]]
     pull = getattr(settings, "preview_cost", 0.0)
     if pull > 0 and result.motion.n_frames >= 3:
-        notes.append(f"look-ahead pulled at {pull:g} per rad (preview_cost)")
+        # the QP's pull is a least-squares weight per rad, SLSQP's a groove loss's weight
+        unit = "" if isinstance(settings, SLSQPSettings) else " per rad"
+        notes.append(f"look-ahead pulled at {pull:g}{unit} (preview_cost)")
     return "; ".join(notes)
 
 

@@ -24,6 +24,8 @@ import osqp
 import scipy.sparse as sp
 from scipy.interpolate import BSpline
 
+from hlik.criteria.angles import joint_difference
+from hlik.criteria.base import Term
 from hlik.solvers.limits import MotionLimits
 
 # OSQP takes bounds this large as none (unlimited joints, robots without acceleration limits)
@@ -133,3 +135,31 @@ class PathTask(mink.PostureTask):
     def at(self, k: int) -> None:
         """Aim at frame ``k``'s configuration."""
         self.set_target(self.path[k])
+
+
+class PathTerm(Term):
+    """The look-ahead as a term, for SLSQP's groove losses: the distance (rad) of the configuration
+    from frame k's on a joint path, once :meth:`at` is called with the frame's index. Its cost is
+    the norm of ``q − path[k]`` (angular differences on unlimited joints), as RelaxedIK's
+    smoothness terms are the norm of theirs. ``path`` (T, n), rad."""
+
+    name, sites, part_form, needs_sample = "path", (), "norm", False
+
+    def __init__(self, robot, path: np.ndarray):
+        self.path = np.asarray(path, dtype=float)
+        self.unlimited = np.isinf(robot.lower)
+        self.constant_jacobian = np.eye(robot.dof)
+        self.target = self.path[0]
+
+    def at(self, k: int) -> None:
+        """Aim at frame ``k``'s configuration."""
+        self.target = self.path[k]
+
+    def residual(self, state, sample):
+        return joint_difference(state.q, self.target, self.unlimited)
+
+    def cost(self, e):
+        return np.linalg.norm(e, axis=-1)
+
+    def cost_gradient(self, e):
+        return e / np.maximum(np.linalg.norm(e, axis=-1, keepdims=True), 1e-12)

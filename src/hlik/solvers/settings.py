@@ -284,6 +284,9 @@ class SLSQPSettings(SolverSettings):
             paper's weighted form): each hand's position and orientation error (relative pose
             errors in ``relative``) stays within it, or where a frame starts outside it, gets no
             worse than at the start (:class:`BandConstraint`); the criteria act inside it.
+        preview_cost: Weight of the loss toward the look-ahead path (:mod:`hlik.solvers.preview`,
+            as the QP's ``preview_cost``; a :class:`~hlik.solvers.preview.PathTerm`, h in rad);
+            0: none, one pass, the paper's OPT. Above 0 the take is solved twice.
     """
 
     position_cost: float = 10.0
@@ -307,6 +310,7 @@ class SLSQPSettings(SolverSettings):
     precondition: str = "gauss_newton"
     position_band: float = 0.0
     orientation_band: float = 0.0
+    preview_cost: float = 0.0
 
     def __post_init__(self):
         check_settings(

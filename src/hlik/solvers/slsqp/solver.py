@@ -19,6 +19,7 @@ from hlik.robot.model import Robot
 from hlik.solvers.base import ConfiguredSolver, SolverResult
 from hlik.solvers.frames import FrameResult, JointBox, box_with_limits, track
 from hlik.solvers.limits import MotionLimits
+from hlik.solvers.preview import PathTerm, feasible_path
 from hlik.solvers.settings import SLSQPSettings
 from hlik.solvers.slsqp.constraints import (
     BAND_TOLERANCE,
@@ -28,7 +29,7 @@ from hlik.solvers.slsqp.constraints import (
     BoxConstraint,
     CollisionConstraint,
 )
-from hlik.solvers.slsqp.objective import Chart, Objective, build_losses
+from hlik.solvers.slsqp.objective import Chart, Loss, Objective, build_losses
 
 # NLopt exceptions that end one frame, not the run, and the result code each stands for. NLopt's
 # generic failure also comes as a plain RuntimeError("nlopt failure"): only that message counts, so
@@ -268,15 +269,41 @@ def solve(
     each frame's start and kept as linear constraints with the box's
     (:func:`~hlik.solvers.frames.box_with_limits`; a frame that cannot keep them fails).
 
+    With ``settings.preview_cost`` the take is solved twice, as the QP's look-ahead
+    (:mod:`hlik.solvers.preview`): first without the acceleration and torque limits, then with
+    every limit and a :class:`~hlik.solvers.preview.PathTerm` loss toward the nearest path that
+    keeps them; the diagnostics are the second pass's.
+
     Diagnostics: ``iterations`` counts NLopt's objective evaluations (``fd``: each costs n + 1 FK
     passes), a frame has converged when NLopt stopped by its tolerance (not ``MAXEVAL_REACHED``) and
     failed when NLopt failed or returned a non-finite result; ``info["status"]`` (T,) holds NLopt's
     result codes.
     """
+    if settings.preview_cost <= 0 or problem.n_frames < 3:
+        return _solve_pass(problem, settings, progress, limits)
+    half = (lambda k: progress(k // 2)) if progress else None
+    free = replace(settings, acceleration_limits=False, torque_limits=False, preview_cost=0.0)
+    unlimited = _solve_pass(problem, free, half, limits)
+    path = feasible_path(unlimited.q, MotionLimits.of(problem.robot, settings), problem.dt)
+    second = (lambda k: progress((problem.n_frames + k) // 2)) if progress else None
+    return _solve_pass(problem, settings, second, limits, PathTerm(problem.robot, path))
+
+
+def _solve_pass(
+    problem: Problem,
+    settings: SLSQPSettings,
+    progress: Callable[[int], None] | None,
+    limits: Sequence[mink.Limit],
+    path: PathTerm | None = None,
+) -> SolverResult:
+    """One pass of :func:`solve` over the take, with a loss toward ``path`` (weight
+    ``settings.preview_cost``) if given."""
     robot, learned = problem.robot, problem.learned
     s = settings
-    objective = Objective(robot, build_losses(robot, s, learned), s.gradients, s.fd_step, s.precondition)
-    first = Objective(robot, build_losses(robot, s, learned, True), s.gradients, s.fd_step, s.precondition)
+    toward = [Loss(path, s.preview_cost, 1.0)] if path is not None else []
+    losses, first_losses = ([*build_losses(robot, s, learned, first), *toward] for first in (False, True))
+    objective = Objective(robot, losses, s.gradients, s.fd_step, s.precondition)
+    first = Objective(robot, first_losses, s.gradients, s.fd_step, s.precondition)
     opt = make_optimizer(robot, settings)
     pairs = collision_pairs(robot) if settings.self_collision else None
     collision = CollisionConstraint(robot, pairs, settings) if pairs is not None and len(pairs) else None
@@ -287,6 +314,8 @@ def solve(
     def solve_frame_k(k: int, frame: Sample, q: np.ndarray, box: JointBox) -> FrameResult:
         if config is not None:
             box = box_with_limits(box, limits, config, box.clip(q), frame.dt)
+        if path is not None:
+            path.at(k)
         obj, max_eval, hands = (
             (first, settings.first_eval, first_band) if k == 0 else (objective, settings.max_eval, band)
         )
