@@ -1,4 +1,5 @@
-"""Look-ahead for the frame-by-frame QP: a joint path that starts each motion early enough.
+"""Look-ahead for the frame-by-frame solvers (QP, SLSQP): a joint path that starts each motion early
+enough.
 
 Solved frame by frame, a solver accelerates only once the target has moved, and brakes only once it
 is there: where the hands turn faster than the joints' acceleration limits follow, the hand lags,
@@ -13,7 +14,8 @@ joint, the path nearest to that one which keeps the stops (with their margin), s
 and jerk limits: a least-squares fit over all frames, which starts a swing
 before the target does and brakes before it stops. The QP then retargets the take again, with
 every limit and a :class:`PathTask` pulling toward that path beside its own terms, so the hands,
-the criteria and the limits of every frame (torques, self-collision) still decide.
+the criteria and the limits of every frame (torques, self-collision) still decide. SLSQP does the
+same with its own passes and a groove loss on :class:`PathTerm`, the distance to the path's frame.
 """
 
 from __future__ import annotations

@@ -14,7 +14,9 @@ differences of the objective instead, as the paper and RelaxedIK do.
 Frames are warm-started from the previous solution; where NLopt stops without a result, the frame
 keeps the configuration it evaluated that missed the body's constraints least (the lowest
 objective among equals; else the frame's start): a frame NLopt calls roundoff-limited is then
-unconverged, any other failure is reported as failed.
+unconverged, any other failure is reported as failed. With ``preview_cost`` (off in the paper's
+OPT) the take is solved twice, the second pass with one more loss toward a path within the
+acceleration limits (:mod:`hlik.solvers.preview`, as the QP's look-ahead).
 
 NLopt's SLSQP starts each frame's quasi-Newton model from the identity Hessian, and the objective's
 is 10^3-10^5 times larger and far from round. Each frame is therefore solved in the variables x of
