@@ -310,11 +310,12 @@ def _solver_note(result: RunResult) -> str:
     settings = _solver_settings(result)
     priority = _priority(settings)
     notes = [] if priority == "weighted" else [PRIORITY[priority]]
-    pull = getattr(settings, "preview_cost", 0.0)
-    if pull > 0 and result.motion.n_frames >= 3:
+    pull = getattr(settings, "preview_cost", None)
+    if pull is not None and result.motion.n_frames >= 3:
         # the QP's pull is a least-squares weight per rad, SLSQP's a groove loss's weight
         unit = "" if isinstance(settings, SLSQPSettings) else " per rad"
-        notes.append(f"look-ahead pulled at {pull:g}{unit} (preview_cost)")
+        said = f"look-ahead pulled at {pull:g}{unit}" if pull > 0 else "one pass, no look-ahead"
+        notes.append(f"{said} (preview_cost)")
     return "; ".join(notes)
 
 
