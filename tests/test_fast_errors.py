@@ -97,7 +97,7 @@ def test_an_existing_default_output_is_answered_before_any_heavy_import(tmp_path
 
 
 STACK_VALUES = [
-    ("[qp]\nvelocity_cost = -1\n", "[qp] velocity_cost must be a finite number >= 0, got -1"),
+    ("[qp]\nvelocity_cost = -1\n", "[qp] velocity_cost must be a finite number in [0, 1e+06], got -1"),
     ("[qp.gamma]\nHJA_r = 1e300\n", "HJA_r must be a finite number in [0, 1e+06], got 1e+300"),
     ('[slsqp]\ngradients = "fdd"\n', "[slsqp] gradients must be 'analytic' or 'fd'"),
     ("[jv]\nk = 1.0\n", "[jv] k must be a finite number <= 0, got 1.0"),

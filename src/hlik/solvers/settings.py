@@ -391,7 +391,6 @@ def check_settings(
     """
     owner = type(settings).__name__
     weights = tuple(f.name for f in dataclasses.fields(settings) if f.name.endswith("_cost"))  # type: ignore[arg-type]
-    at_least_zero = (*weights, *at_least_zero)
     if hasattr(settings, "collision_margin"):  # SolverSettings
         at_least_zero, positive = (*at_least_zero, "collision_margin"), (*positive, "collision_detect")
     if hasattr(settings, "stop_margin"):  # every solver's LimitSettings
@@ -408,14 +407,13 @@ def check_settings(
         (at_most_zero, "a finite number <= 0", lambda v: v <= 0),
         (fractions, "a number in (0, 1]", lambda v: 0 < v <= 1),
     )
-    for keys, rule, holds in rules:
+    # a weight of 1e300 overflows the objective's squares: one rule, both bounds in its message
+    weight_rule = (weights, f"a finite number in [0, {MAX_WEIGHT:g}]", lambda v: 0 <= v <= MAX_WEIGHT)
+    for keys, rule, holds in (weight_rule, *rules):
         for key in keys:
             value = getattr(settings, key)
             if not (_is_real(value) and math.isfinite(value) and holds(value)):
                 fail(key, rule)
-    for key in weights:  # a weight of 1e300 overflows the objective's squares
-        if getattr(settings, key) > MAX_WEIGHT:
-            fail(key, f"a finite number in [0, {MAX_WEIGHT:g}]")
     for key in counts:
         value = getattr(settings, key)
         integral = isinstance(value, numbers.Integral) and not isinstance(value, bool)
