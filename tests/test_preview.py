@@ -194,3 +194,27 @@ def test_slsqp_with_look_ahead_follows_its_path_within_every_limit(cut_take, pan
     near = {pull: np.median(np.linalg.norm(q - path, axis=1)) for pull, q in distance.items()}
     # 0.064 -> 0.019 rad when written
     assert near[30.0] < 0.5 * near[0.0], near
+
+
+def test_slsqp_objective_gradient_with_the_path_loss_equals_finite_differences(panda):
+    """The groove loss on :class:`PathTerm` in SLSQP's objective: its analytic gradient (from the
+    term's identity Jacobian) equals forward differences of the objective, off the path and near it
+    (inside the groove's well, |q - path| < 0.1 rad)."""
+    from hlik.criteria.base import Sample
+    from hlik.solvers.slsqp import Loss, Objective
+
+    eye = np.tile(np.eye(3), (2, 1, 1))
+    home = panda.home
+    sample = Sample.one(np.zeros((2, 3)), eye, home, np.zeros(2), eye, np.tile(home, (3, 1)), 0.01)
+    rng = np.random.default_rng(3)
+    path = panda.home + rng.normal(scale=0.2, size=(4, panda.dof))
+    term = PathTerm(panda, path)
+    objective = Objective(panda, [Loss(term, 30.0, 1.0)], fd_step=1e-7, precondition="none")
+    for k, scale in ((1, 0.3), (2, 0.01)):
+        term.at(k)
+        q = path[k] + rng.normal(scale=scale, size=panda.dof)
+        objective.reset(sample)
+        f, grad = objective.value_and_gradient(q)
+        np.testing.assert_allclose(
+            grad, objective.fd_gradient(q, f), rtol=1e-4, atol=1e-4 * np.abs(grad).max()
+        )

@@ -27,7 +27,7 @@ import scipy.sparse as sp
 from scipy.interpolate import BSpline
 
 from hlik.criteria.angles import joint_difference
-from hlik.criteria.base import Term
+from hlik.criteria.base import Term, block_norm_cost, block_norm_gradient
 from hlik.solvers.limits import MotionLimits
 
 # OSQP takes bounds this large as none (unlimited joints, robots without acceleration limits)
@@ -161,7 +161,7 @@ class PathTerm(Term):
         return joint_difference(state.q, self.target, self.unlimited)
 
     def cost(self, e):
-        return np.linalg.norm(e, axis=-1)
+        return block_norm_cost(e, 1)
 
     def cost_gradient(self, e):
-        return e / np.maximum(np.linalg.norm(e, axis=-1, keepdims=True), 1e-12)
+        return block_norm_gradient(e, 1)
