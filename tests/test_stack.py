@@ -188,21 +188,23 @@ def test_a_run_says_when_it_held_the_hands_first(takes, tmp_path, solver, said):
 
 
 @pytest.mark.parametrize(
-    ("robot", "solver", "said", "pull"),
+    ("robot", "solver", "stack", "said", "pull"),
     [
-        ("dual_panda", "qp", True, "look-ahead pulled at 8 per rad"),
-        ("armar6", "qp", False, "look-ahead pulled at 3 per rad"),
-        ("dual_panda", "slsqp", False, "look-ahead pulled at 30 (preview_cost)"),
-        ("armar6", "slsqp", False, "one pass, no look-ahead (preview_cost)"),
+        ("dual_panda", "qp", "ee_pose", True, "look-ahead pulled at 8 per rad"),
+        ("armar6", "qp", "ee_pose", False, "look-ahead pulled at 3 per rad"),
+        ("dual_panda", "slsqp", "ee_pose", False, "look-ahead pulled at 30 (preview_cost)"),
+        ("armar6", "slsqp", "paper_opt", False, "one pass, no look-ahead (preview_cost)"),
     ],
 )
-def test_a_run_says_when_its_look_ahead_held_the_hands_first(takes, tmp_path, robot, solver, said, pull):
+def test_a_run_says_when_its_look_ahead_held_the_hands_first(
+    takes, tmp_path, robot, solver, stack, said, pull
+):
     """``ee_pose`` sets ``preview_hands_first`` for the QP on 2-Panda only (``[qp.robot.dual_panda]``):
     the summary's solver row says so there, and not on ARMAR-6; and it names each robot's pull,
-    SLSQP's too, and that ARMAR-6's SLSQP has none."""
+    SLSQP's too, and that the paper's OPT (``paper_opt``) has none."""
     out = tmp_path / "r.rrd"
     args = ["run", str(takes[4]), "--rate", "10", "--span", "1:2", "--robot", robot, "--solver", solver]
-    result = CliRunner().invoke(app, [*args, "--out", str(out)])
+    result = CliRunner().invoke(app, [*args, "--stack", stack, "--out", str(out)])
     assert result.exit_code == 0, result.output
     assert ("look-ahead's path from the hands first" in result.stdout) == said, result.stdout
     assert pull in result.stdout, result.stdout
