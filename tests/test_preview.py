@@ -169,8 +169,7 @@ def test_slsqp_with_look_ahead_follows_its_path_within_every_limit(cut_take, pan
     from hlik.executable import controller_checks
     from hlik.human.load import load_motion
     from hlik.retarget import retarget
-    from hlik.solvers import slsqp
-    from hlik.solvers.slsqp import solver
+    from hlik.solvers import preview, slsqp
 
     paths = []
 
@@ -178,7 +177,7 @@ def test_slsqp_with_look_ahead_follows_its_path_within_every_limit(cut_take, pan
         paths.append(feasible_path(q, *args, **kwargs))
         return paths[-1]
 
-    monkeypatch.setattr(solver, "feasible_path", kept)
+    monkeypatch.setattr(preview, "feasible_path", kept)
     motion = load_motion(cut_take, rate=100.0).crop(1.0, 2.5)
     learned = learn(panda)
     distance = {}

@@ -20,6 +20,10 @@ same with its own passes and a groove loss on :class:`PathTerm`, the distance to
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from dataclasses import replace
+from typing import Any
+
 import mink
 import numpy as np
 import osqp
@@ -28,6 +32,8 @@ from scipy.interpolate import BSpline
 
 from hlik.criteria.angles import joint_difference
 from hlik.criteria.base import Term, block_norm_cost, block_norm_gradient
+from hlik.problem.problem import Problem
+from hlik.solvers.base import SolverResult
 from hlik.solvers.limits import MotionLimits
 
 # OSQP takes bounds this large as none (unlimited joints, robots without acceleration limits)
@@ -41,6 +47,31 @@ HEADROOM = 0.5
 # where a fit of every frame took 4 s for a take of 5 s (OSQP), and smooth enough for a human's
 # motion (a slow sine is fitted to 1e-4 rad)
 KNOT_PERIOD = 0.04
+
+
+def solve_twice(
+    problem: Problem,
+    settings: Any,
+    solve_pass: Callable[[Any, Callable[[int], None] | None, np.ndarray | None], SolverResult],
+    progress: Callable[[int], None] | None = None,
+    **first: Any,
+) -> SolverResult:
+    """The look-ahead's two passes over ``problem``, for any solver whose frozen ``settings`` have
+    the :class:`~hlik.solvers.settings.LimitSettings` switches and a ``preview_cost``.
+
+    ``solve_pass(settings, progress, path)`` solves the take once: first with the acceleration and
+    torque limits off, no pull and the changes ``first`` (the QP's hands first), without a path;
+    then with ``settings`` and the path (T, n), rad, that :func:`feasible_path` fits to the first
+    pass within every limit. ``progress(k)`` sees each pass as half the frames. Returns the second
+    pass's result.
+    """
+    n = problem.n_frames
+    half = (lambda k: progress(k // 2)) if progress else None
+    free = replace(settings, acceleration_limits=False, torque_limits=False, preview_cost=0.0, **first)
+    unlimited = solve_pass(free, half, None)
+    path = feasible_path(unlimited.q, MotionLimits.of(problem.robot, settings), problem.dt)
+    second = (lambda k: progress((n + k) // 2)) if progress else None
+    return solve_pass(settings, second, path)
 
 
 def feasible_path(q: np.ndarray, limits: MotionLimits, dt: float, headroom: float = HEADROOM) -> np.ndarray:

@@ -12,7 +12,6 @@ stops when no joint moves more than ``tol`` in a step or after ``max_iter`` step
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import replace
 from functools import partial
 
 import mink
@@ -29,10 +28,9 @@ from hlik.problem.problem import Problem
 from hlik.robot.model import Robot
 from hlik.solvers.base import ConfiguredSolver, SolverResult
 from hlik.solvers.frames import FIRST_FRAME_SCENARIO, first_frame_terms
-from hlik.solvers.limits import MotionLimits
 from hlik.solvers.mink_ik import MinkSolver, is_hand_task
 from hlik.solvers.mink_tasks import CriterionTask, HandBandLimit, StateCache
-from hlik.solvers.preview import PathTask, feasible_path
+from hlik.solvers.preview import PathTask, solve_twice
 from hlik.solvers.settings import QPSettings
 
 # the terms a hands-first QP (``hands_first``) solves before the criteria, trunk and elbow terms
@@ -138,16 +136,13 @@ def solve(
     robot, learned = problem.robot, problem.learned
     if settings.preview_cost <= 0 or problem.n_frames < 3:
         return build_solver(robot, settings, learned, tasks, limits, progress)(problem)
-    half = (lambda k: progress(k // 2)) if progress else None
+
+    def solve_pass(s: QPSettings, progress, path: np.ndarray | None) -> SolverResult:
+        toward = [] if path is None else [PathTask(robot.model, path, s.preview_cost)]
+        return build_solver(robot, s, learned, [*tasks, *toward], limits, progress)(problem)
+
     hands_first = settings.hands_first or settings.preview_hands_first
-    free = replace(
-        settings, acceleration_limits=False, torque_limits=False, preview_cost=0.0, hands_first=hands_first
-    )
-    unlimited = build_solver(robot, free, learned, tasks, limits, half)(problem)
-    path = feasible_path(unlimited.q, MotionLimits.of(robot, settings), problem.dt)
-    second = (lambda k: progress((problem.n_frames + k) // 2)) if progress else None
-    preview = PathTask(robot.model, path, settings.preview_cost)
-    return build_solver(robot, settings, learned, [*tasks, preview], limits, second)(problem)
+    return solve_twice(problem, settings, solve_pass, progress, hands_first=hands_first)
 
 
 def qp_solver(

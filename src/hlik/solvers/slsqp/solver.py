@@ -19,7 +19,7 @@ from hlik.robot.model import Robot
 from hlik.solvers.base import ConfiguredSolver, SolverResult
 from hlik.solvers.frames import FrameResult, JointBox, box_with_limits, track
 from hlik.solvers.limits import MotionLimits
-from hlik.solvers.preview import PathTerm, feasible_path
+from hlik.solvers.preview import PathTerm, solve_twice
 from hlik.solvers.settings import SLSQPSettings
 from hlik.solvers.slsqp.constraints import (
     BAND_TOLERANCE,
@@ -281,12 +281,12 @@ def solve(
     """
     if settings.preview_cost <= 0 or problem.n_frames < 3:
         return _solve_pass(problem, settings, progress, limits)
-    half = (lambda k: progress(k // 2)) if progress else None
-    free = replace(settings, acceleration_limits=False, torque_limits=False, preview_cost=0.0)
-    unlimited = _solve_pass(problem, free, half, limits)
-    path = feasible_path(unlimited.q, MotionLimits.of(problem.robot, settings), problem.dt)
-    second = (lambda k: progress((problem.n_frames + k) // 2)) if progress else None
-    return _solve_pass(problem, settings, second, limits, PathTerm(problem.robot, path))
+
+    def solve_pass(s: SLSQPSettings, progress, path: np.ndarray | None) -> SolverResult:
+        toward = None if path is None else PathTerm(problem.robot, path)
+        return _solve_pass(problem, s, progress, limits, toward)
+
+    return solve_twice(problem, settings, solve_pass, progress)
 
 
 def _solve_pass(
