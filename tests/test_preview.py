@@ -22,6 +22,16 @@ def panda():
     return load_robot("dual_panda")
 
 
+def _keeps_every_limit(traj, robot) -> None:
+    """No failed frame, and the accelerations and torques a controller sees within their limits."""
+    from hlik.executable import controller_checks
+
+    checks = controller_checks(traj, robot)
+    assert checks.acceleration_ratio.max() <= 1.0 + 1e-6
+    assert checks.torque_ratio.max() <= 1.0 + 1e-6
+    assert not np.any(traj.diagnostics.failed)
+
+
 def _rates(path: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.abs(np.diff(path, axis=0)) / DT, np.abs(np.diff(path, 2, axis=0)) / DT**2
 
@@ -76,17 +86,13 @@ def test_the_path_task_aims_at_its_frame(panda):
 def test_the_qp_with_look_ahead_keeps_every_limit(cut_take, panda):
     """Both passes on 1.5 s of the Cut take: the second keeps the frame box (acceleration, torque,
     stops) in every frame, with the hands on target."""
-    from hlik.executable import controller_checks
     from hlik.human.load import load_motion
     from hlik.retarget import retarget
     from hlik.solvers.qp import qp_solver
 
     motion = load_motion(cut_take, rate=100.0).crop(1.0, 2.5)
     traj = retarget(motion, panda, qp_solver(QPSettings(preview_cost=3.0)))
-    checks = controller_checks(traj, panda)
-    assert checks.acceleration_ratio.max() <= 1.0 + 1e-6
-    assert checks.torque_ratio.max() <= 1.0 + 1e-6
-    assert not np.any(traj.diagnostics.failed)
+    _keeps_every_limit(traj, panda)
     assert np.median(np.linalg.norm(traj.tcp_pos - traj.targets.pos, axis=-1)) < 0.01
 
 
@@ -111,7 +117,6 @@ def test_a_look_ahead_from_the_hands_first_turns_the_hands_less_within_every_lim
     second pass still keeps the acceleration and torque limits."""
     from hlik.criteria.functional import rotation_angle
     from hlik.criteria.learned import learn
-    from hlik.executable import controller_checks
     from hlik.human.load import load_motion
     from hlik.retarget import retarget
     from hlik.solvers.qp import qp_solver
@@ -121,9 +126,7 @@ def test_a_look_ahead_from_the_hands_first_turns_the_hands_less_within_every_lim
     for first in (False, True):
         settings = QPSettings(criteria=("SYN", "HJA_r"), preview_hands_first=first)
         traj = retarget(motion, panda, qp_solver(settings), learned=learn(panda))
-        checks = controller_checks(traj, panda)
-        assert checks.acceleration_ratio.max() <= 1.0 + 1e-6 and checks.torque_ratio.max() <= 1.0 + 1e-6
-        assert not np.any(traj.diagnostics.failed)
+        _keeps_every_limit(traj, panda)
         turned[first] = np.median(rotation_angle(traj.tcp_rot, traj.targets.rot))
     assert turned[True] < 0.75 * turned[False], np.degrees([turned[False], turned[True]])
 
@@ -166,7 +169,6 @@ def test_slsqp_with_look_ahead_follows_its_path_within_every_limit(cut_take, pan
     the acceleration and torque limits with no failed frame and the hands on target, and stays
     nearer the path than one pass without it does (the loss pulls; median distance, rad)."""
     from hlik.criteria.learned import learn
-    from hlik.executable import controller_checks
     from hlik.human.load import load_motion
     from hlik.retarget import retarget
     from hlik.solvers import preview, slsqp
@@ -184,9 +186,7 @@ def test_slsqp_with_look_ahead_follows_its_path_within_every_limit(cut_take, pan
     for pull in (0.0, 30.0):
         settings = SLSQPSettings(criteria=("SYN", "HJA_r"), preview_cost=pull)
         traj = retarget(motion, panda, slsqp.slsqp_solver(settings), learned=learned)
-        checks = controller_checks(traj, panda)
-        assert checks.acceleration_ratio.max() <= 1.0 + 1e-6 and checks.torque_ratio.max() <= 1.0 + 1e-6
-        assert not np.any(traj.diagnostics.failed)
+        _keeps_every_limit(traj, panda)
         assert np.median(np.linalg.norm(traj.tcp_pos - traj.targets.pos, axis=-1)) < 0.01
         distance[pull] = traj.q
     (path,) = paths  # one pass without the pull, two with it

@@ -305,13 +305,14 @@ def _priority(settings: object) -> str:
 def _solver_note(result: RunResult) -> str:
     """What the summary's solver row adds: the priority unless weighted, and the look-ahead's pull
     (the QP's, mink's and SLSQP's; it differs per robot in ``ee_pose``)."""
+    from hlik.solvers.preview import LOOK_AHEAD_FRAMES
     from hlik.solvers.settings import SLSQPSettings
 
     settings = _solver_settings(result)
     priority = _priority(settings)
     notes = [] if priority == "weighted" else [PRIORITY[priority]]
     pull = getattr(settings, "preview_cost", None)
-    if pull is not None and result.motion.n_frames >= 3:
+    if pull is not None and result.motion.n_frames >= LOOK_AHEAD_FRAMES:
         # the QP's pull is a least-squares weight per rad, SLSQP's a groove loss's weight
         unit = "" if isinstance(settings, SLSQPSettings) else " per rad"
         said = f"look-ahead pulled at {pull:g}{unit}" if pull > 0 else "one pass, no look-ahead"

@@ -49,23 +49,30 @@ HEADROOM = 0.5
 KNOT_PERIOD = 0.04
 
 
-def solve_twice(
+# the fewest frames a take is looked ahead on: with one or two there is no motion to start early
+LOOK_AHEAD_FRAMES = 3
+
+
+def solve_with_look_ahead(
     problem: Problem,
     settings: Any,
     solve_pass: Callable[[Any, Callable[[int], None] | None, np.ndarray | None], SolverResult],
     progress: Callable[[int], None] | None = None,
     **first: Any,
 ) -> SolverResult:
-    """The look-ahead's two passes over ``problem``, for any solver whose frozen ``settings`` have
-    the :class:`~hlik.solvers.settings.LimitSettings` switches and a ``preview_cost``.
+    """A take solved with the look-ahead, for any solver whose frozen ``settings`` have the
+    :class:`~hlik.solvers.settings.LimitSettings` switches and a ``preview_cost``.
 
-    ``solve_pass(settings, progress, path)`` solves the take once: first with the acceleration and
-    torque limits off, no pull and the changes ``first`` (the QP's hands first), without a path;
-    then with ``settings`` and the path (T, n), rad, that :func:`feasible_path` fits to the first
-    pass within every limit. ``progress(k)`` sees each pass as half the frames. Returns the second
-    pass's result.
+    ``solve_pass(settings, progress, path)`` solves the take once. Where ``settings.preview_cost``
+    is 0 or the take has fewer than :data:`LOOK_AHEAD_FRAMES` frames, that is all, without a path.
+    Else it runs twice: first with the acceleration and torque limits off, no pull and the changes
+    ``first`` (the QP's hands first), without a path; then with ``settings`` and the path (T, n),
+    rad, that :func:`feasible_path` fits to the first pass within every limit, ``progress(k)``
+    seeing each pass as half the frames. Returns the last pass's result.
     """
     n = problem.n_frames
+    if settings.preview_cost <= 0 or n < LOOK_AHEAD_FRAMES:
+        return solve_pass(settings, progress, None)
     half = (lambda k: progress(k // 2)) if progress else None
     free = replace(settings, acceleration_limits=False, torque_limits=False, preview_cost=0.0, **first)
     unlimited = solve_pass(free, half, None)

@@ -30,7 +30,7 @@ from hlik.solvers.base import ConfiguredSolver, SolverResult
 from hlik.solvers.frames import FIRST_FRAME_SCENARIO, first_frame_terms
 from hlik.solvers.mink_ik import MinkSolver, is_hand_task
 from hlik.solvers.mink_tasks import CriterionTask, HandBandLimit, StateCache
-from hlik.solvers.preview import PathTask, solve_twice
+from hlik.solvers.preview import PathTask, solve_with_look_ahead
 from hlik.solvers.settings import QPSettings
 
 # the terms a hands-first QP (``hands_first``) solves before the criteria, trunk and elbow terms
@@ -134,15 +134,13 @@ def solve(
     keeps them; the diagnostics are the second pass's. ``settings.preview_hands_first`` holds the
     hands first in the first pass only."""
     robot, learned = problem.robot, problem.learned
-    if settings.preview_cost <= 0 or problem.n_frames < 3:
-        return build_solver(robot, settings, learned, tasks, limits, progress)(problem)
 
     def solve_pass(s: QPSettings, progress, path: np.ndarray | None) -> SolverResult:
         toward = [] if path is None else [PathTask(robot.model, path, s.preview_cost)]
         return build_solver(robot, s, learned, [*tasks, *toward], limits, progress)(problem)
 
     hands_first = settings.hands_first or settings.preview_hands_first
-    return solve_twice(problem, settings, solve_pass, progress, hands_first=hands_first)
+    return solve_with_look_ahead(problem, settings, solve_pass, progress, hands_first=hands_first)
 
 
 def qp_solver(

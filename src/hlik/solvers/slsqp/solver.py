@@ -19,7 +19,7 @@ from hlik.robot.model import Robot
 from hlik.solvers.base import ConfiguredSolver, SolverResult
 from hlik.solvers.frames import FrameResult, JointBox, box_with_limits, track
 from hlik.solvers.limits import MotionLimits
-from hlik.solvers.preview import PathTerm, solve_twice
+from hlik.solvers.preview import PathTerm, solve_with_look_ahead
 from hlik.solvers.settings import SLSQPSettings
 from hlik.solvers.slsqp.constraints import (
     BAND_TOLERANCE,
@@ -279,14 +279,12 @@ def solve(
     failed when NLopt failed or returned a non-finite result; ``info["status"]`` (T,) holds NLopt's
     result codes.
     """
-    if settings.preview_cost <= 0 or problem.n_frames < 3:
-        return _solve_pass(problem, settings, progress, limits)
 
     def solve_pass(s: SLSQPSettings, progress, path: np.ndarray | None) -> SolverResult:
         toward = None if path is None else PathTerm(problem.robot, path)
         return _solve_pass(problem, s, progress, limits, toward)
 
-    return solve_twice(problem, settings, solve_pass, progress)
+    return solve_with_look_ahead(problem, settings, solve_pass, progress)
 
 
 def _solve_pass(
