@@ -11,7 +11,6 @@ Prints each mistake's median wall time, its ratio to the floor, its exit code an
 from __future__ import annotations
 
 import argparse
-import os
 import statistics
 import subprocess
 import sys
@@ -19,7 +18,8 @@ import tempfile
 import time
 from pathlib import Path
 
-DATA = Path(os.environ.get("HLIK_DATA", Path(__file__).resolve().parents[2] / "shared" / "motion_data"))
+from common import DATA
+
 MISTAKES = {
     "unknown robot": ["run", "--robot", "armar7"],
     "missing motion file": ["run", "no_such_take.xml"],

@@ -10,21 +10,12 @@ Run by hand: ``python bench/collision_cost.py [--criteria SYN,HJA_r]``.
 from __future__ import annotations
 
 import argparse
-import os
-import time
 from dataclasses import replace
-from pathlib import Path
-
-import numpy as np
 
 import hlik
-from hlik.criteria.learned import learn
-from hlik.problem.placement import placement_from_spec
-from hlik.problem.problem import build_problem
+from common import ab_cpu_ms, kit_problems, kit_takes
 from hlik.solvers.qp import solve
 from hlik.solvers.stack_file import load_stack
-
-DATA = Path(os.environ.get("HLIK_DATA", Path(__file__).resolve().parents[2] / "shared" / "motion_data"))
 
 
 def main() -> None:
@@ -35,25 +26,15 @@ def main() -> None:
     parser.add_argument("--seconds", type=float, default=3.0)
     parser.add_argument("--repeats", type=int, default=3)
     args = parser.parse_args()
-    takes = sorted((DATA / "kit_bimanual").glob("*.xml"))[: args.takes]
+    takes = kit_takes(args.takes)
     criteria = [c for c in args.criteria.split(",") if c]
     settings = load_stack("ee_pose").with_criteria(criteria).settings("qp")
     print(f"{len(takes)} takes x {args.seconds:g} s, qp{'+' + '+'.join(criteria) if criteria else ''}")
     print(f"{'robot':11s} {'with ms':>8s} {'without ms':>10s} {'ratio':>6s}")
     for name in args.robots.split(","):
-        robot = hlik.load_robot(name)
-        learned = learn(robot)
-        times: dict[bool, list[float]] = {True: [], False: []}
-        for take in takes:
-            motion = hlik.load_motion(take, rate=100.0)
-            motion = motion.crop(1.0, min(1.0 + args.seconds, motion.duration))
-            problem = build_problem(motion, robot, placement_from_spec(robot.placement, robot, motion))
-            for r in range(args.repeats):
-                for on in (True, False) if r % 2 == 0 else (False, True):
-                    start = time.process_time()
-                    solve(replace(problem, learned=learned), replace(settings, self_collision=on))
-                    times[on].append((time.process_time() - start) / problem.n_frames)
-        with_ms, without_ms = (1e3 * np.median(times[on]) for on in (True, False))
+        problems = kit_problems(hlik.load_robot(name), takes, args.seconds)
+        variants = {on: replace(settings, self_collision=on) for on in (True, False)}
+        with_ms, without_ms = ab_cpu_ms(solve, problems, variants, args.repeats)
         print(f"{name:11s} {with_ms:8.2f} {without_ms:10.2f} {with_ms / without_ms:6.2f}", flush=True)
 
 

@@ -17,7 +17,6 @@ stage (peak MB, MB held after it, seconds); the last lines give the file sizes a
 from __future__ import annotations
 
 import argparse
-import os
 import tempfile
 import time
 from collections.abc import Callable
@@ -28,10 +27,9 @@ from typing import Any
 
 import numpy as np
 
+from common import DATA
 from hlik.human.mmm_format import write_mmm
 from hlik.human.motion import HumanMotion
-
-DATA = Path(os.environ.get("HLIK_DATA", Path(__file__).resolve().parents[2] / "shared" / "motion_data"))
 
 
 def looped(motion: HumanMotion, seconds: float) -> HumanMotion:

@@ -24,8 +24,9 @@ from pathlib import Path
 
 import numpy as np
 
+from common import kit_takes
+
 ROOT = Path(__file__).resolve().parents[1]
-DATA = Path(os.environ.get("HLIK_DATA", ROOT.parent / "shared" / "motion_data"))
 REPEATS = 3  # the two checkouts alternate: the machine's load moves both alike
 
 # run in a subprocess with a checkout's src first on sys.path; prints one JSON line
@@ -98,7 +99,7 @@ def main() -> None:
     parser.add_argument("--takes", type=int, default=2)
     parser.add_argument("--seconds", type=float, default=2.0)
     args = parser.parse_args()
-    takes = sorted((DATA / "kit_bimanual").glob("*.xml"))[: args.takes]
+    takes = kit_takes(args.takes)
     print(
         f"{'robot':11s} {'qp':9s} {'ms/frame':>8s} {'steps':>6s} {'m_hl':>6s} {'m_f':>6s} "
         f"{'fPOS cm':>7s} {'fORI':>5s} {'failed':>6s}"

@@ -17,21 +17,19 @@ qp+SYN+HJA_r] [--takes 8] [--seconds 5] [--every 10]``.
 from __future__ import annotations
 
 import argparse
-import os
 from collections import Counter
-from pathlib import Path
 
 import mujoco
 import numpy as np
 from scipy.optimize import minimize
 
 import hlik
+from common import kit_takes
 from hlik.criteria.functional import rotation_angle
 from hlik.pipeline import RunSpec
 from hlik.pipeline import run as run_pipeline
 from hlik.robot.model import SIDES
 
-DATA = Path(os.environ.get("HLIK_DATA", Path(__file__).resolve().parents[2] / "shared" / "motion_data"))
 STOP_MARGIN = np.radians(3.0)  # the solvers' default stop margin (QPSettings.stop_margin)
 
 
@@ -98,7 +96,7 @@ def main() -> None:
     parser.add_argument("--widen", default="")
     args = parser.parse_args()
     solver, *criteria = args.approach.split("+")
-    takes = sorted((DATA / "kit_bimanual").glob("*.xml"))[: args.takes]
+    takes = kit_takes(args.takes)
     print(
         f"{len(takes)} takes x {args.seconds:g} s, {args.approach}, every {args.every}th frame, "
         f"position within {args.tol * 100:g} cm; widened: {args.widen or 'none'}"

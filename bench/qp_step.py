@@ -27,6 +27,7 @@ import mink
 import numpy as np
 
 import hlik
+from common import kit_takes
 from hlik.criteria.learned import learn
 from hlik.problem.problem import build_problem
 from hlik.solvers.qp import QPSettings, solve
@@ -81,7 +82,7 @@ def against(revision: str) -> float:
     takes x 2 s, SYN + HJA_r (:mod:`mink_qp`)."""
     import mink_qp  # beside this file
 
-    takes = sorted((mink_qp.DATA / "kit_bimanual").glob("*.xml"))[:2]
+    takes = kit_takes(2)
     ms: dict[str, list[float]] = {"qp": [], revision: []}
     with tempfile.TemporaryDirectory() as tmp:
         sources = {"qp": mink_qp.ROOT / "src", revision: mink_qp.checkout(revision, Path(tmp))}

@@ -31,19 +31,18 @@ without the limits of ``solvers/limits.py``, for their cost).
 from __future__ import annotations
 
 import argparse
-import os
 from pathlib import Path
 
 import numpy as np
 
 import hlik
+from common import kit_takes
 from hlik.criteria.functional import position_error, relative_errors, rotation_angle
 from hlik.criteria.learned import learn
 from hlik.pipeline import RunSpec
 from hlik.pipeline import run as run_pipeline
 from hlik.robot.state import robot_state
 
-DATA = Path(os.environ.get("HLIK_DATA", Path(__file__).resolve().parents[2] / "shared" / "motion_data"))
 DEFAULT = "jm,jv,qp,qp+SYN,qp+HJA_r,slsqp,slsqp+SYN,slsqp+HJA_r"
 
 
@@ -170,9 +169,7 @@ def main() -> None:
     )
     args = parser.parse_args()
     overrides = {k: _setting(v) for k, v in (item.split("=", 1) for item in args.set)}
-    takes = sorted((DATA / "kit_bimanual").glob("*.xml"))[: args.takes]
-    if not takes:
-        raise SystemExit(f"{DATA / 'kit_bimanual'}: no takes (set HLIK_DATA)")
+    takes = kit_takes(args.takes)
     where = args.placement or "the robot's"
     scale = args.scale or "the robot's"
     print(

@@ -13,14 +13,13 @@ Run by hand: ``python bench/slsqp_precondition.py [--robots armar6] [--criteria 
 from __future__ import annotations
 
 import argparse
-import os
 import time
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 
 import hlik
+from common import kit_takes
 from hlik.criteria.learned import learn
 from hlik.metrics import evaluate
 from hlik.problem.placement import placement_from_spec
@@ -28,8 +27,6 @@ from hlik.solvers import get_solver
 from hlik.solvers.slsqp import PRECONDITIONERS
 from hlik.solvers.stack_file import load_stack
 from hlik.study.dataset import cell_motion
-
-DATA = Path(os.environ.get("HLIK_DATA", Path(__file__).resolve().parents[2] / "shared" / "motion_data"))
 
 
 def main() -> None:
@@ -41,9 +38,7 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=2)
     args = parser.parse_args()
     criteria = tuple(c for c in args.criteria.split(",") if c)
-    takes = sorted((DATA / "kit_bimanual").glob("*.xml"))[: args.takes]
-    if not takes:
-        raise SystemExit(f"no KIT takes in {DATA / 'kit_bimanual'} (set HLIK_DATA)")
+    takes = kit_takes(args.takes)
     speedups = []
     print(
         f"{'robot':<11}{'precondition':<14}{'ms/frame':>9}{'evals':>7}{'conv %':>8}{'failed':>7}"

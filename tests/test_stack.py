@@ -210,6 +210,27 @@ def test_a_run_says_when_its_look_ahead_held_the_hands_first(
     assert pull in result.stdout, result.stdout
 
 
+@pytest.mark.parametrize("hands_first", [False, True])
+@pytest.mark.parametrize("preview_hands_first", [False, True])
+@pytest.mark.parametrize("preview_cost", [0.0, 3.0])
+def test_priority_names_what_the_qp_ranks_first(hands_first, preview_hands_first, preview_cost):
+    """``QPSettings.priority``: every step's hands first wins; the look-ahead's hands first only
+    counts with a pull (without one there is no first pass); else weighted."""
+    from hlik.solvers.settings import QPSettings
+
+    s = QPSettings(
+        hands_first=hands_first, preview_hands_first=preview_hands_first, preview_cost=preview_cost
+    )
+    expected = (
+        "hands_first"
+        if hands_first
+        else "preview_hands_first"
+        if preview_hands_first and preview_cost > 0
+        else "weighted"
+    )
+    assert s.priority == expected
+
+
 def test_cli_rejects_fd_gradients_outside_slsqp():
     result = CliRunner().invoke(app, ["run", "--solver", "qp", "--gradients", "fd"])
     assert result.exit_code == 2 and "--gradients fd is for --solver slsqp" in result.stderr

@@ -293,13 +293,8 @@ def _export(result: RunResult, npz: Path, fmt: str) -> None:
 
 
 def _priority(settings: object) -> str:
-    """How a run's solver ``settings`` rank the hands: ``hands_first``, ``preview_hands_first`` (the
-    QP's and mink's, the latter with the look-ahead on) or ``weighted``."""
-    if getattr(settings, "hands_first", False):
-        return "hands_first"
-    if getattr(settings, "preview_hands_first", False) and getattr(settings, "preview_cost", 0.0) > 0:
-        return "preview_hands_first"
-    return "weighted"
+    """How a run's solver ``settings`` rank the hands (``QPSettings.priority``; others weigh them)."""
+    return getattr(settings, "priority", "weighted")
 
 
 def _solver_note(result: RunResult) -> str:

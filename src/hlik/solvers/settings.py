@@ -156,6 +156,17 @@ class QPSettings(SolverSettings):
     solver: str = DEFAULT_BACKEND
     collision_gain: float = 0.5
 
+    @property
+    def priority(self) -> str:
+        """How the hands rank against the posture: ``hands_first`` (every step),
+        ``preview_hands_first`` (the look-ahead's first pass only, so only with a pull) or
+        ``weighted``."""
+        if self.hands_first:
+            return "hands_first"
+        if self.preview_hands_first and self.preview_cost > 0:
+            return "preview_hands_first"
+        return "weighted"
+
     def __post_init__(self):
         check_settings(
             self,
