@@ -159,7 +159,9 @@ def test_unreachable_targets_give_finite_motion_and_report_the_error():
     assert np.all(np.isfinite(q)) and _within_limits(r, q)
     fpos = np.linalg.norm(robot_state(r, q).tcp - far.pos, axis=-1).mean(axis=-1)
     assert np.all(fpos > 2.0)  # reported, not hidden
-    assert np.all(steps.diagnostics.iterations <= 10 * settings.max_iter)
+    # the step budget holds: the first frame's once from each of its two starts (frames.track)
+    iterations = steps.diagnostics.iterations
+    assert iterations[0] <= 2 * 10 * settings.max_iter and np.all(iterations[1:] <= settings.max_iter)
 
 
 @pytest.mark.parametrize("scenario", ["pose", "relative"])

@@ -115,7 +115,10 @@ def test_unreachable_targets_give_finite_motion_and_report_the_error():
     assert np.all(np.isfinite(q)) and np.all(q >= r.lower - 1e-9) and np.all(q <= r.upper + 1e-9)
     err = np.linalg.norm(robot_state(r, q).tcp - far.pos, axis=-1)
     assert np.all(err > 4.0)  # reported, not hidden
-    assert np.all(steps.diagnostics.iterations <= 100)
+    # the step budget holds: the first frame's (10 x 10) once from each of its two starts, since it
+    # leaves the hands off (frames.track)
+    iterations = steps.diagnostics.iterations
+    assert iterations[0] <= 200 and np.all(iterations[1:] <= 10)
 
 
 def test_criteria_improve_their_own_score(takes):

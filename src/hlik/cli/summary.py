@@ -5,6 +5,10 @@ from __future__ import annotations
 from rich.table import Table
 
 
+def _frames(n: int) -> str:
+    return f"{n} frame" if n == 1 else f"{n} frames"
+
+
 def controller_line(c) -> str:
     """The summary's ``controller`` row: what :class:`hlik.executable.ControllerChecks` found."""
     j = c.to_json()
@@ -12,21 +16,21 @@ def controller_line(c) -> str:
     if c.has_acceleration_limits:
         parts.append(
             f"peak acceleration {j['max_acceleration_ratio']:.2f} of its limit ({j['acceleration_joint']}), "
-            f"{j['frames_over_acceleration']} frames over"
+            f"{_frames(j['frames_over_acceleration'])} over"
         )
     else:
         parts.append("no acceleration limits given")
     if c.has_jerk_limits:
         parts.append(
             f"peak jerk {j['max_jerk_ratio']:.2f} of its limit ({j['jerk_joint']}), "
-            f"{j['frames_over_jerk']} frames over"
+            f"{_frames(j['frames_over_jerk'])} over"
         )
     else:
         parts.append(f"peak jerk {j['max_jerk']:.0f} rad/s³ ({j['jerk_joint']}; no jerk limits given)")
     if c.has_effort_limits:
         parts.append(
             f"peak torque {j['max_torque_ratio']:.2f} of its limit ({j['torque_joint']}, "
-            f"{j['max_torque']:.1f} N m), {j['frames_over_effort']} frames over"
+            f"{j['max_torque']:.1f} N m), {_frames(j['frames_over_effort'])} over"
         )
     else:
         parts.append(f"peak torque {j['max_torque']:.1f} N m ({j['torque_joint']}; no effort limits given)")
