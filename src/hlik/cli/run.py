@@ -256,7 +256,7 @@ def _report(result: RunResult, rrd: Path, npz: Path, corpus_source: str) -> None
     console.print(f"criteria learned from: {label}", soft_wrap=True)
     if result.tried:
         scores = ", ".join(f"{c.name} {c.m_hl_f:.3f}" for c in result.tried)
-        console.print(f"placement optimize (m_hl,f of a short qp run): {scores}")
+        console.print(f"placement optimize (m_hl,f of a short qp run): {scores}", soft_wrap=True)
     console.print(
         f"human likeness m_hl = {ev.m_hl:.3f}, functional m_f = {ev.m_f:.3f} ({result.scenario}), "
         f"m_hl,f = {ev.m_hl_f:.3f}, weights and x0: {ev.metric.source}",
