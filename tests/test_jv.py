@@ -159,9 +159,10 @@ def test_unreachable_targets_give_finite_motion_and_report_the_error():
     assert np.all(np.isfinite(q)) and _within_limits(r, q)
     fpos = np.linalg.norm(robot_state(r, q).tcp - far.pos, axis=-1).mean(axis=-1)
     assert np.all(fpos > 2.0)  # reported, not hidden
-    # the step budget holds: the first frame's once from each of its two starts (frames.track)
+    # the step budget holds; the first frame, solved from up to three starts (frames.track), gets
+    # ten times a frame's steps from each
     iterations = steps.diagnostics.iterations
-    assert iterations[0] <= 2 * 10 * settings.max_iter and np.all(iterations[1:] <= settings.max_iter)
+    assert iterations[0] <= 3 * 10 * settings.max_iter and np.all(iterations[1:] <= settings.max_iter)
 
 
 @pytest.mark.parametrize("scenario", ["pose", "relative"])

@@ -115,10 +115,10 @@ def test_unreachable_targets_give_finite_motion_and_report_the_error():
     assert np.all(np.isfinite(q)) and np.all(q >= r.lower - 1e-9) and np.all(q <= r.upper + 1e-9)
     err = np.linalg.norm(robot_state(r, q).tcp - far.pos, axis=-1)
     assert np.all(err > 4.0)  # reported, not hidden
-    # the step budget holds: the first frame's (10 x 10) once from each of its two starts, since it
-    # leaves the hands off (frames.track)
+    # the step budget holds; the first frame, which leaves the hands off, is solved from its start,
+    # from the hands' IK, and from its start again (frames.track), 10 x 10 steps at most each
     iterations = steps.diagnostics.iterations
-    assert iterations[0] <= 200 and np.all(iterations[1:] <= 10)
+    assert iterations[0] <= 300 and np.all(iterations[1:] <= 10)
 
 
 def test_criteria_improve_their_own_score(takes):

@@ -19,7 +19,7 @@ class Diagnostics:
 
     Attributes:
         iterations: Steps (QP, JV, mink) or objective evaluations (SLSQP) spent on the frame (the
-            first frame's from both starts where it was solved twice, ``frames.track``).
+            first frame's over every start it was solved from, ``frames.track``).
         converged: The frame stopped by the solver's tolerance, not by its iteration cap (nor, in
             SLSQP, by NLopt's roundoff limit at a point that keeps the constraints).
         failed: The solver gave no usable solution; the frame keeps the best finite configuration

@@ -86,7 +86,7 @@ def track(
         q_start = box.clip(2.0 * q - history[1]) if k else q
         result = solve_frame(k, sample, q_start, box)
         if k == 0:
-            result = _first_frame(problem, solve_frame, sample, box, result)
+            result = _first_frame(problem, solve_frame, sample, box, q, result)
         seconds[k] = time.perf_counter() - start
         q = result.q
         iterations[k], converged[k], failed[k] = result.iterations, result.converged, result.failed
@@ -99,61 +99,75 @@ def track(
 
 
 def hand_miss(problem: Problem, q: np.ndarray, k: int = 0) -> float:
-    """How far ``q`` (n,) leaves the hands off their TCP targets at frame ``k``: the larger hand's
-    position error over :data:`FIRST_FRAME_TOLERANCE`'s metres plus its angle over its radians
-    (at most 1: both hands within it)."""
+    """How far ``q`` (n,) leaves the hands off their TCP targets at frame ``k``, in
+    :data:`FIRST_FRAME_TOLERANCE`: the largest of each hand's position error over its metres and
+    angle over its radians (at most 1: both hands within both)."""
     pos, rot = tcp_poses(problem.robot, q[None])
     targets = problem.targets
     dp = np.linalg.norm(pos[0] - targets.pos[k], axis=-1)
     da = rotation_angle(rot[0], targets.rot[k])
     tol_p, tol_a = FIRST_FRAME_TOLERANCE
-    return float(np.max(dp / tol_p + da / tol_a))
+    return float(max(np.max(dp) / tol_p, np.max(da) / tol_a))
 
 
-def hands_ik(problem: Problem, q: np.ndarray, margin: float, steps: int = 300) -> np.ndarray:
-    """(n,) joint angles that put both TCPs on their first-frame targets as near as the joint
-    limits (moved in by ``margin``, rad) let them, from ``q`` (n,): the hands alone, by mink's
-    differential IK (two ``FrameTask``s, ``ConfigurationLimit``) iterated to a standstill."""
+def hands_ik(problem: Problem, q: np.ndarray, box: JointBox, steps: int = 300) -> np.ndarray:
+    """(n,) joint angles inside ``box`` that put both TCPs on their first-frame targets as near as
+    it lets them, from ``q`` (n,): the hands alone, by mink's differential IK (two ``FrameTask`` tasks,
+    ``ConfigurationLimit``), each step clipped into the box, to a standstill or ``steps``."""
     import mink  # the solvers' IK; light imports for the Python API that never solves
 
     robot, targets = problem.robot, problem.targets
-    config = mink.Configuration(robot.model, np.clip(q, robot.lower + margin, robot.upper - margin))
+    config = mink.Configuration(robot.model, box.clip(q))
     tasks = []
     for i, side in enumerate(SIDES):
         task = mink.FrameTask(f"{side}_tcp", "site", position_cost=1.0, orientation_cost=HANDS_IK_METRES)
         frame = mink.SO3.from_matrix(targets.rot[0, i])
         task.set_target(mink.SE3.from_rotation_and_translation(frame, targets.pos[0, i]))
         tasks.append(task)
-    limits = [mink.ConfigurationLimit(robot.model, min_distance_from_limits=margin)]
+    limits = [mink.ConfigurationLimit(robot.model)]
     for _ in range(steps):
-        v = mink.solve_ik(config, tasks, 1.0, "daqp", 1e-3, limits=limits)
+        try:
+            v = mink.solve_ik(config, tasks, 1.0, "daqp", 1e-3, limits=limits)
+        except mink.exceptions.NoSolutionFound:
+            break
+        before = config.q.copy()
         config.integrate_inplace(v, 1.0)
-        if np.max(np.abs(v)) < 1e-5:
+        config.update(box.clip(config.q))
+        if np.max(np.abs(config.q - before)) < 1e-5:
             break
     return config.q.copy()
 
 
 def _first_frame(
-    problem: Problem, solve_frame: FrameSolver, sample: Sample, box: JointBox, result: FrameResult
+    problem: Problem,
+    solve_frame: FrameSolver,
+    sample: Sample,
+    box: JointBox,
+    start: np.ndarray,
+    result: FrameResult,
 ) -> FrameResult:
-    """The first frame solved again where the mapped pose's start left a hand off (:func:`hand_miss`
-    above 1): from the hands' own IK (:func:`hands_ik`) from where ``result`` ended or from home,
-    whichever lands the hands nearer; kept where the solver's frame then leaves them at most
-    :data:`FIRST_FRAME_SWITCH` as far, and touches itself no more than before."""
+    """The first frame, solved from ``start`` (n,) into ``result``, solved again where that left a
+    hand off (:func:`hand_miss` above 1): from the hands' own IK (:func:`hands_ik`) from where it
+    ended or from home, whichever lands the hands nearer. The second solution is kept where it
+    leaves the hands at most :data:`FIRST_FRAME_SWITCH` as far, touches itself no more and did not
+    fail where the first did not; else the frame is solved from ``start`` once more, which puts
+    back what a solver carries from frame to frame (JV's null-space memory). Iterations count
+    every solve."""
     miss = hand_miss(problem, result.q)
     if miss <= 1.0:
         return result
     robot = problem.robot
-    limited = np.isfinite(robot.lower) & np.isfinite(box.lower)
-    margin = float(np.max(box.lower[limited] - robot.lower[limited], initial=0.0))  # the stop margin
-    starts = [box.clip(hands_ik(problem, q, margin)) for q in (result.q, robot.home)]
-    start = min(starts, key=lambda q: hand_miss(problem, q))
-    again = solve_frame(0, sample, box.clip(start), box)
+    starts = [hands_ik(problem, q, box) for q in (result.q, robot.home)]
+    again = solve_frame(0, sample, min(starts, key=lambda q: hand_miss(problem, q)), box)
     iterations = result.iterations + again.iterations
-    better = hand_miss(problem, again.q) <= FIRST_FRAME_SWITCH * miss
-    if better and len(self_contacts(robot, again.q)) <= len(self_contacts(robot, result.q)):
+    if (
+        hand_miss(problem, again.q) <= FIRST_FRAME_SWITCH * miss
+        and (result.failed or not again.failed)
+        and len(self_contacts(robot, again.q)) <= len(self_contacts(robot, result.q))
+    ):
         return replace(again, iterations=iterations)
-    return replace(result, iterations=iterations)
+    first = solve_frame(0, sample, start, box)
+    return replace(first, iterations=iterations + first.iterations)
 
 
 # The first frame starts from the clipped mapped human pose, often far from its targets, and has no
@@ -164,9 +178,9 @@ FIRST_FRAME_SCENARIO = "pose"
 # From the clipped mapped pose, joints clipped onto their stops, the first frame's local steps can
 # end on a branch with joints at their stops that the whole take then keeps (2-Panda's left arm on
 # the bundled demo: 7.5 cm and 50 deg off in 87 % of the frames; from home, 0.0 cm and 0.0 deg).
-# Where a hand lands farther than this (m, rad) off, the frame is solved from home too, and that
-# start is taken where it lands at most this share as far (a robot at its own home is where a
-# real trajectory begins).
+# Where the first frame leaves a hand farther off than this (m, rad), it is solved again from the
+# hands' own IK, and that is kept where it leaves them at most this share as far (a robot at its
+# home, one of the IK's starts, is where a real trajectory begins)
 FIRST_FRAME_TOLERANCE = (0.02, np.radians(10.0))
 FIRST_FRAME_SWITCH = 0.5
 # hands_ik's orientation weight, m per rad: 10 deg off weighs as 1.7 cm (FIRST_FRAME_TOLERANCE's ratio)

@@ -425,7 +425,7 @@ def solve(
 
     def solve_frame(k: int, frame: Sample, q: np.ndarray, box: JointBox) -> FrameResult:
         nonlocal memory
-        if memory is None:
+        if memory is None or k == 0:  # the first frame may be solved more than once (frames.track)
             memory = Memory(
                 chan_dubey(q, robot.lower, robot.upper)[1], np.zeros(robot.dof), settings.max_null
             )

@@ -307,7 +307,6 @@ def _solve_pass(
     collision = CollisionConstraint(robot, pairs, settings) if pairs is not None and len(pairs) else None
     band, first_band = (BandConstraint(robot, o.losses, settings) for o in (objective, first))
     status = np.zeros(problem.n_frames, dtype=int)
-    first_codes: list[tuple[np.ndarray, int]] = []  # the first frame may be solved from two starts
     config = mink.Configuration(robot.model) if limits else None
 
     def solve_frame_k(k: int, frame: Sample, q: np.ndarray, box: JointBox) -> FrameResult:
@@ -324,13 +323,9 @@ def _solve_pass(
         converged = status[k] > 0 and status[k] != nlopt.MAXEVAL_REACHED
         # roundoff-limited (NLopt: "still typically returns a useful result"): unconverged, not failed
         failed = status[k] < 0 and status[k] != nlopt.ROUNDOFF_LIMITED
-        q = box.clip(q)
-        if k == 0:
-            first_codes.append((q, int(status[0])))
-        return FrameResult(q, obj.evaluations, converged, failed)
+        return FrameResult(box.clip(q), obj.evaluations, converged, failed)
 
     result = track(problem, solve_frame_k, progress, MotionLimits.of(robot, settings))
-    status[0] = next(code for q, code in first_codes if np.array_equal(q, result.q[0]))  # the start kept
     return replace(result, info=MappingProxyType({"status": status}))
 
 
