@@ -320,7 +320,7 @@ def test_a_stack_file_names_mink_tasks_and_limits_beside_hlik_s(tmp_path):
     # the same stack under another solver says that [mink]'s own objects go unused
     assert stack.near_misses("mink", "armar6") == []
     assert stack.near_misses("qp", "armar6") == [
-        f"{stack.name}: [mink] tasks and limits are used by --solver mink only, not qp"
+        f"{stack.path}: [mink] tasks and limits are used by --solver mink only, not qp"
     ]
     for text, said in (
         ('[mink]\ntasks = [{ type = "PostureTsk", cost = 1.0 }]', "unknown mink Task 'PostureTsk'"),
@@ -332,3 +332,54 @@ def test_a_stack_file_names_mink_tasks_and_limits_beside_hlik_s(tmp_path):
         with pytest.raises(SettingsError) as err:
             load_stack(path)
         assert str(err.value).startswith(f"{path}: [mink]") and said in str(err.value), str(err.value)
+
+
+@pytest.mark.parametrize(
+    "table, says",
+    [
+        ('tasks = [{ type = "PostureTask", cost = -0.05 }]', "[mink] tasks: PostureTask: PostureTask cost"),
+        ('tasks = [{ type = "PostureTask", cost = 0.05, gain = 2.0 }]', "[mink] tasks: PostureTask:"),
+        (
+            'tasks = [{ type = "PostureTask", cost = 0.05, target = [0.1, 0.2] }]',
+            "[mink] tasks: PostureTask:",
+        ),
+        (
+            'tasks = [{ type = "FrameTask", frame_name = "left_elbow", frame_type = "site", '
+            "position_cost = 1.0, orientation_cost = 0.0 }]",
+            "[mink] tasks: FrameTask needs a target",
+        ),
+        ('limits = [{ type = "CollisionAvoidanceLimit" }]', "[mink] limits: CollisionAvoidanceLimit:"),
+        ('limits = [{ type = "ConfigurationLimit", gain = 5.0 }]', "[mink] limits: ConfigurationLimit:"),
+    ],
+)
+def test_a_value_mink_refuses_is_one_line_naming_the_file_before_the_work(tmp_path, table, says):
+    """mink's own checks (a negative cost, a gain past 1, a target of the wrong shape, a missing
+    parameter) and a task whose target a stack file cannot give: one line naming the stack file,
+    ``[mink]`` and the list, exit 2, nothing written (it was a traceback after placement and
+    learning, a new user's trial)."""
+    stack = tmp_path / "mine.toml"
+    stack.write_text((tasks_dir() / "ee_pose.toml").read_text() + f"\n[mink]\n{table}\n")
+    out = tmp_path / "out" / "r.rrd"
+    out.parent.mkdir()
+    args = ["run", "--solver", "mink", "--stack", str(stack), "--span", "0:0.2", "--out", str(out)]
+    result = CliRunner().invoke(app, args)
+    assert result.exit_code == 2, result.output
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"error: {stack}: ") and says in lines[0], lines
+    assert list(out.parent.iterdir()) == []
+
+
+def test_a_frame_task_on_a_tcp_follows_the_hands(tmp_path):
+    """A mink FrameTask on ``left_tcp`` needs no target in the file: the solver aims it at the left
+    hand's every frame (and the run keeps that hand on its target)."""
+    stack = tmp_path / "tcp.toml"
+    task = (
+        '{ type = "FrameTask", frame_name = "left_tcp", frame_type = "site", position_cost = 1.0, '
+        "orientation_cost = 0.5 }"
+    )
+    stack.write_text((tasks_dir() / "ee_pose.toml").read_text() + f"\n[mink]\ntasks = [{task}]\n")
+    out = tmp_path / "r.rrd"
+    args = ["run", "--solver", "mink", "--stack", str(stack), "--span", "0:0.5", "--out", str(out)]
+    result = CliRunner().invoke(app, args)
+    assert result.exit_code == 0, result.output
+    assert out.exists() and "mink's own FrameTask ([mink])" in result.stdout

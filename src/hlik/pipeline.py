@@ -159,6 +159,11 @@ def run(
     scenario = spec.scenario or stack.scenario
     metric = load_metric(spec.metric) if spec.metric is not None else None
     robot = robot or load_robot(str(spec.robot))
+    settings = solver_settings(spec, stack, robot.name)
+    if spec.solver == "mink":  # mink's own objects built now: a value mink refuses, before the work
+        from hlik.solvers.mink_specs import build_all
+
+        build_all(robot, settings, stack.where)
     if motion is None:
         _say(progress, f"reading {spec.motion_path.name}")
         motion = read_motion(spec, robot)
@@ -169,7 +174,6 @@ def run(
     if placement is None:
         placement, tried, placed = place(spec, robot, motion, learned, scenario, progress)
         notes += placed
-    settings = solver_settings(spec, stack, robot.name)
     stage = f"retargeting to {robot.title} ({spec.solver})"
     step = (lambda k: progress(stage, k + 1, motion.n_frames)) if progress else None
     _say(progress, stage, 0, motion.n_frames)

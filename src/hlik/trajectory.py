@@ -176,6 +176,8 @@ def _read_arrays(path: Path) -> dict[str, np.ndarray]:
     check_readable(
         path, lambda problem: TrajectoryFormatError(f"{path}: {problem}"), "a trajectory .npz file"
     )
+    if not zipfile.is_zipfile(path) and path.suffix.lower() != ".npy":  # a .toml, a .csv, ...
+        raise TrajectoryFormatError(f"{path}: not a readable trajectory .npz file (not an .npz archive)")
     try:  # shapes from the headers first: a header may claim any size, a member inflate to GBs
         array_shapes(path)
     except ValueError as e:

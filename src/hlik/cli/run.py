@@ -306,6 +306,9 @@ def _solver_note(result: RunResult) -> str:
     settings = _solver_settings(result)
     priority = _priority(settings)
     notes = [] if priority == "weighted" else [PRIORITY[priority]]
+    own = [*getattr(settings, "tasks", ()), *getattr(settings, "limits", ())]  # --solver mink's
+    if own:
+        notes.append(f"mink's own {', '.join(str(spec['type']) for spec in own)} ([mink])")
     pull = getattr(settings, "preview_cost", None)
     if pull is not None and result.motion.n_frames >= LOOK_AHEAD_FRAMES:
         # the QP's pull is a least-squares weight per rad, SLSQP's a groove loss's weight

@@ -35,6 +35,7 @@ from hlik.solvers.frames import (
     track,
 )
 from hlik.solvers.limits import MotionLimits
+from hlik.solvers.mink_specs import on_a_tcp
 from hlik.solvers.mink_tasks import CriterionTask, HandBandLimit, SelfCollisionLimit, StateCache
 from hlik.solvers.preview import PathTask
 from hlik.solvers.qp_backend import solve_qp
@@ -196,7 +197,7 @@ def is_hand_task(task: mink.Task) -> bool:
     relative forms) or a mink ``FrameTask`` on a TCP site."""
     if isinstance(task, CriterionTask):
         return isinstance(task.term, HAND_TERMS)
-    return isinstance(task, mink.FrameTask) and task.frame_name in {f"{s}_tcp" for s in SIDES}
+    return on_a_tcp(task)
 
 
 def hands_first_step(

@@ -9,7 +9,7 @@ from collections.abc import Mapping
 import mink
 import numpy as np
 
-from hlik.robot.model import Robot
+from hlik.robot.model import SIDES, Robot
 from hlik.util.errors import SettingsError
 
 KINDS = {"tasks": mink.Task, "limits": mink.Limit}
@@ -53,16 +53,53 @@ def check_specs(specs: object, kind: str) -> tuple[Mapping[str, object], ...]:
 
 
 def build(robot: Robot, spec: Mapping[str, object]) -> mink.Task | mink.Limit:
-    """The mink task or limit of ``spec`` (:func:`check_specs`) for ``robot``."""
+    """The mink task or limit of ``spec`` (:func:`check_specs`) for ``robot``.
+
+    Raises:
+        SettingsError: a value mink refuses (a negative cost, a gain past 1, a target of the wrong
+            shape, a missing parameter), or a task that needs a target a stack file cannot give.
+    """
     params = {k: v for k, v in spec.items() if k not in ("type", "target")}
     cls = getattr(mink, str(spec["type"]))
     if "model" in inspect.signature(cls).parameters:
         params["model"] = robot.model
     try:
         obj = cls(**params)
-    except (TypeError, ValueError) as e:
-        raise SettingsError(f"mink {spec['type']}: {e}") from None
-    if isinstance(obj, mink.PostureTask) and not isinstance(obj, mink.DampingTask):  # damping: no target
-        target = spec.get("target")
-        obj.set_target(robot.home if target is None else np.asarray(target, dtype=float))
+        if isinstance(obj, mink.PostureTask) and not isinstance(obj, mink.DampingTask):  # damping: no target
+            target = spec.get("target")
+            obj.set_target(robot.home if target is None else np.asarray(target, dtype=float))
+    except (TypeError, ValueError, mink.exceptions.MinkError) as e:
+        raise SettingsError(f"{spec['type']}: {e}") from None
+    if isinstance(obj, mink.Task) and not on_a_tcp(obj):  # the solver aims those every frame
+        try:
+            obj.compute_error(mink.Configuration(robot.model, robot.home))
+        except mink.exceptions.TargetNotSet:
+            raise SettingsError(
+                f"{spec['type']} needs a target, which a stack file cannot give: only PostureTask "
+                "takes target = [...], and a FrameTask on left_tcp or right_tcp follows the hands"
+            ) from None
     return obj
+
+
+def build_all(robot: Robot, settings: object, where: str) -> tuple[list[mink.Task], list[mink.Limit]]:
+    """The ``tasks`` and ``limits`` of ``settings`` (a :class:`~hlik.solvers.settings.MinkSettings`)
+    built for ``robot``; ``where`` (the stack file) begins each error, with the table and list.
+
+    Raises:
+        SettingsError: as :func:`build`, naming ``where``, ``[mink]`` and the list.
+    """
+    built: dict[str, list] = {}
+    for kind in KINDS:
+        built[kind] = []
+        for spec in getattr(settings, kind, ()):
+            try:
+                built[kind].append(build(robot, spec))
+            except SettingsError as e:
+                raise SettingsError(f"{where}: [mink] {kind}: {e}") from None
+    return built["tasks"], built["limits"]
+
+
+def on_a_tcp(task: mink.Task) -> bool:
+    """A mink ``FrameTask`` on a TCP site (``left_tcp``, ``right_tcp``): one the solvers aim at the
+    hands' targets every frame."""
+    return isinstance(task, mink.FrameTask) and task.frame_name in {f"{s}_tcp" for s in SIDES}

@@ -22,7 +22,7 @@ import mink
 
 from hlik.problem.problem import Problem
 from hlik.solvers.base import ConfiguredSolver, SolverResult
-from hlik.solvers.mink_specs import build
+from hlik.solvers.mink_specs import build_all
 from hlik.solvers.qp import solve as solve_qp
 from hlik.solvers.settings import MinkSettings
 
@@ -35,9 +35,7 @@ def solve(
 ) -> SolverResult:
     """Retarget frame by frame with the QP's stack, the settings' mink objects and a caller's
     ``limits`` on mink."""
-    robot = problem.robot
-    tasks = [t for t in (build(robot, s) for s in settings.tasks) if isinstance(t, mink.Task)]
-    own = [lim for lim in (build(robot, s) for s in settings.limits) if isinstance(lim, mink.Limit)]
+    tasks, own = build_all(problem.robot, settings, "[mink]")
     return solve_qp(problem, settings, progress, tasks, [*own, *limits])
 
 

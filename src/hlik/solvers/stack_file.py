@@ -41,6 +41,7 @@ class Stack:
         solvers: Solver name -> settings overrides (field name -> value).
         robots: Solver name -> robot name -> that robot's overrides over the solver's
             (``[<solver>.robot.<name>]``).
+        path: The file it was read from (None: made in Python); messages name it.
     """
 
     name: str
@@ -49,6 +50,12 @@ class Stack:
     gamma: Mapping[str, float] = field(default_factory=dict)
     solvers: Mapping[str, Mapping[str, object]] = field(default_factory=dict)
     robots: Mapping[str, Mapping[str, Mapping[str, object]]] = field(default_factory=dict)
+    path: Path | None = None
+
+    @property
+    def where(self) -> str:
+        """What messages call the stack: its file, else its name."""
+        return str(self.path) if self.path is not None else self.name
 
     def with_criteria(self, criteria: Sequence[str]) -> Stack:
         """The same stack with other criteria."""
@@ -79,7 +86,7 @@ class Stack:
         # another bundled robot's table is meant for it (armar6 beside armar3), not a typo
         names = {n for s in layers for n in self.robots.get(s, {})} - {robot, *available_robots()}
         notes = [
-            f"{self.name}: [{s}.{ROBOT_TABLE}.{n}] is not used for robot {robot!r}: a typo of {robot!r}?"
+            f"{self.where}: [{s}.{ROBOT_TABLE}.{n}] is not used for robot {robot!r}: a typo of {robot!r}?"
             for s in layers
             for n in sorted(self.robots.get(s, {}))
             if n in names and difflib.get_close_matches(n, [robot], n=1, cutoff=0.75)
@@ -87,7 +94,7 @@ class Stack:
         own = [k for k in ("tasks", "limits") if self.solvers.get("mink", {}).get(k)]
         if own and solver != "mink":  # mink's own objects are what --solver mink adds to the QP
             unused = " and ".join(own)
-            notes.append(f"{self.name}: [mink] {unused} are used by --solver mink only, not {solver}")
+            notes.append(f"{self.where}: [mink] {unused} are used by --solver mink only, not {solver}")
         return notes
 
 
@@ -171,6 +178,7 @@ def _parse(raw: dict, path: Path) -> Stack:
         gamma=gamma,
         solvers=MappingProxyType(solvers),
         robots=MappingProxyType(robots),
+        path=path,
     )
     for solver in SOLVER_TABLES:  # refuse bad values now, naming the file, not when a solver starts
         owner = f"{settings_class(solver).__name__}."
