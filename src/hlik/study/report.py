@@ -52,7 +52,8 @@ def heatmap(corr: Correlation, path: Path) -> Path:
         for j in range(len(names)):
             ax.text(j, i, f"{c[i, j]:.2f}", ha="center", va="center", fontsize=6.5)
     fig.colorbar(im, ax=ax, label="Spearman ρ (mean over robots)")
-    ax.set_title("Correlation of the human-likeness criteria (cf. paper Fig. 4)")
+    # over the figure, not the axes: centred on the matrix it ran into the colour bar
+    fig.suptitle("Correlation of the human-likeness criteria (cf. paper Fig. 4)")
     return _save(fig, path)
 
 
@@ -62,8 +63,9 @@ def dendrogram(corr: Correlation, path: Path) -> Path:
     hierarchy.dendrogram(
         ward(corr.mean), labels=list(corr.names), ax=ax, color_threshold=CUTOFF, leaf_rotation=45
     )
-    ax.axhline(CUTOFF, color="k", linestyle="--", linewidth=1)
-    ax.text(ax.get_xlim()[1], CUTOFF, f" cut-off {CUTOFF}", va="bottom", ha="right", fontsize=8)
+    # in a legend, which matplotlib places clear of the branches (a label on the line crossed one)
+    ax.axhline(CUTOFF, color="k", linestyle="--", linewidth=1, label=f"cut-off {CUTOFF}")
+    ax.legend(loc="best", fontsize=8)
     ax.set_ylabel("Ward distance on 1 − ρ")
     ax.set_title("Hierarchy of the criteria (cf. paper Fig. 5)")
     return _save(fig, path)
