@@ -13,18 +13,14 @@ import argparse
 from dataclasses import replace
 
 import hlik
-from common import ab_cpu_ms, kit_problems, kit_takes
+from common import ab_arguments, ab_cpu_ms, kit_problems, kit_takes
 from hlik.solvers.qp import solve
 from hlik.solvers.stack_file import load_stack
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--robots", default="armar3,armar6,dual_panda")
-    parser.add_argument("--criteria", default="")
-    parser.add_argument("--takes", type=int, default=4)
-    parser.add_argument("--seconds", type=float, default=3.0)
-    parser.add_argument("--repeats", type=int, default=3)
+    ab_arguments(parser, criteria="", takes=4)
     args = parser.parse_args()
     takes = kit_takes(args.takes)
     criteria = [c for c in args.criteria.split(",") if c]

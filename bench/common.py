@@ -6,6 +6,7 @@ Imported by the scripts beside it (``python bench/<name>.py`` puts this folder o
 
 from __future__ import annotations
 
+import argparse
 import os
 import time
 from collections.abc import Callable, Mapping
@@ -16,6 +17,16 @@ from typing import Any
 import numpy as np
 
 DATA = Path(os.environ.get("HLIK_DATA", Path(__file__).resolve().parents[2] / "shared" / "motion_data"))
+
+
+def ab_arguments(parser: argparse.ArgumentParser, criteria: str, takes: int) -> None:
+    """The options of an A/B timing bench: ``--robots``, ``--criteria`` (default ``criteria``),
+    ``--takes`` (default ``takes``), ``--seconds`` and ``--repeats``."""
+    parser.add_argument("--robots", default="armar3,armar6,dual_panda")
+    parser.add_argument("--criteria", default=criteria)
+    parser.add_argument("--takes", type=int, default=takes)
+    parser.add_argument("--seconds", type=float, default=3.0)
+    parser.add_argument("--repeats", type=int, default=3)
 
 
 def kit_takes(n: int | None = None) -> list[Path]:

@@ -17,7 +17,7 @@ from dataclasses import replace
 import numpy as np
 
 import hlik
-from common import ab_cpu_ms, kit_problems, kit_takes
+from common import ab_arguments, ab_cpu_ms, kit_problems, kit_takes
 from hlik.solvers import qp, slsqp
 from hlik.solvers.stack_file import load_stack
 
@@ -26,12 +26,8 @@ SOLVE = {"qp": qp.solve, "slsqp": slsqp.solve}
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--robots", default="armar3,armar6,dual_panda")
+    ab_arguments(parser, criteria="SYN,HJA_r", takes=2)
     parser.add_argument("--solvers", default="qp,slsqp")
-    parser.add_argument("--criteria", default="SYN,HJA_r")
-    parser.add_argument("--takes", type=int, default=2)
-    parser.add_argument("--seconds", type=float, default=3.0)
-    parser.add_argument("--repeats", type=int, default=3)
     args = parser.parse_args()
     takes = kit_takes(args.takes)
     criteria = [c for c in args.criteria.split(",") if c]

@@ -98,14 +98,14 @@ def track(
     return SolverResult(out, Diagnostics(iterations, converged, failed, seconds))
 
 
-def hand_miss(problem: Problem, q: np.ndarray, k: int = 0) -> float:
-    """How far ``q`` (n,) leaves the hands off their TCP targets at frame ``k``, in
+def hand_miss(problem: Problem, q: np.ndarray) -> float:
+    """How far ``q`` (n,) leaves the hands off their first-frame TCP targets, in
     :data:`FIRST_FRAME_TOLERANCE`: the largest of each hand's position error over its metres and
     angle over its radians (at most 1: both hands within both)."""
     pos, rot = tcp_poses(problem.robot, q[None])
     targets = problem.targets
-    dp = np.linalg.norm(pos[0] - targets.pos[k], axis=-1)
-    da = rotation_angle(rot[0], targets.rot[k])
+    dp = np.linalg.norm(pos[0] - targets.pos[0], axis=-1)
+    da = rotation_angle(rot[0], targets.rot[0])
     tol_p, tol_a = FIRST_FRAME_TOLERANCE
     return float(max(np.max(dp) / tol_p, np.max(da) / tol_a))
 

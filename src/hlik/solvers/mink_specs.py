@@ -81,13 +81,16 @@ def build(robot: Robot, spec: Mapping[str, object]) -> mink.Task | mink.Limit:
     return obj
 
 
-def build_all(robot: Robot, settings: object, where: str) -> tuple[list[mink.Task], list[mink.Limit]]:
+def build_all(
+    robot: Robot, settings: object, where: str | None = None
+) -> tuple[list[mink.Task], list[mink.Limit]]:
     """The ``tasks`` and ``limits`` of ``settings`` (a :class:`~hlik.solvers.settings.MinkSettings`)
-    built for ``robot``; ``where`` (the stack file) begins each error, with the table and list.
+    built for ``robot``; ``where`` (the stack file), if given, begins each error.
 
     Raises:
         SettingsError: as :func:`build`, naming ``where``, ``[mink]`` and the list.
     """
+    prefix = f"{where}: " if where is not None else ""
     built: dict[str, list] = {}
     for kind in KINDS:
         built[kind] = []
@@ -95,7 +98,7 @@ def build_all(robot: Robot, settings: object, where: str) -> tuple[list[mink.Tas
             try:
                 built[kind].append(build(robot, spec))
             except SettingsError as e:
-                raise SettingsError(f"{where}: [mink] {kind}: {e}") from None
+                raise SettingsError(f"{prefix}[mink] {kind}: {e}") from None
     return built["tasks"], built["limits"]
 
 

@@ -35,7 +35,7 @@ def solve(
 ) -> SolverResult:
     """Retarget frame by frame with the QP's stack, the settings' mink objects and a caller's
     ``limits`` on mink."""
-    tasks, own = build_all(problem.robot, settings, "[mink]")
+    tasks, own = build_all(problem.robot, settings)
     return solve_qp(problem, settings, progress, tasks, [*own, *limits])
 
 
