@@ -5,13 +5,15 @@ acceleration limit) looks for the configuration inside the joint ranges (less th
 margin) that turns both TCPs closest to their target orientations while each TCP stays within
 ``--tol`` of its target position, seeded from the solved frame. Its orientation errors are the
 *floor* near that configuration: what no weight or criterion could remove without leaving the
-joint ranges (a local floor: another branch of the arm could do better). The table compares the
+joint ranges (a local floor: another branch of the arm could do better; ``--seeds N`` adds N starts
+drawn uniformly inside the ranges and keeps the best, the floor over the branches they find). The
+table compares the
 solver's median (p95) hand orientation error with the floor's, and names the joints the floor
 leaves at a stop. ``--widen J1,J2`` widens those joints' ranges by 90 deg each way in the floor's IK
 (not in the solve), to show which range binds.
 
 Run by hand: ``python bench/orientation_floor.py [--robots armar3,dual_panda] [--approach
-qp+SYN+HJA_r] [--takes 8] [--seconds 5] [--every 10]``.
+qp+SYN+HJA_r] [--takes 8] [--seconds 5] [--every 10] [--seeds 0]``.
 """
 
 from __future__ import annotations
@@ -34,10 +36,20 @@ STOP_MARGIN = np.radians(3.0)  # the solvers' default stop margin (QPSettings.st
 
 
 def floor_pose(
-    robot: hlik.Robot, q0: np.ndarray, pos: np.ndarray, rot: np.ndarray, tol: float, widen: np.ndarray
+    robot: hlik.Robot,
+    q0: np.ndarray,
+    pos: np.ndarray,
+    rot: np.ndarray,
+    tol: float,
+    widen: np.ndarray,
+    seeds: int = 0,
+    rng: np.random.Generator | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """(n,) the configuration near ``q0`` turning both TCPs closest to ``rot`` (2, 3, 3) with each
-    within ``tol`` m of ``pos`` (2, 3), base frame; and (2,) its orientation errors, rad."""
+    """(n,) the configuration near ``q0`` (or near one of ``seeds`` random starts inside the
+    ranges, whichever is better) turning both TCPs closest to ``rot`` (2, 3, 3) with each within
+    ``tol`` m of ``pos`` (2, 3), base frame; and (2,) its orientation errors, rad (``q0``, clipped,
+    where no start meets the position bound)."""
+    rng = rng or np.random.default_rng(0)
     model, data = robot.model, mujoco.MjData(robot.model)
     sites = [robot.site_id(s, "tcp") for s in SIDES]
     lo = np.where(np.isinf(robot.lower), -np.inf, robot.lower + STOP_MARGIN - widen)
@@ -70,19 +82,35 @@ def floor_pose(
     def within_jac(q: np.ndarray) -> np.ndarray:
         return np.array([-2.0 * (p - pos[a]) @ wp for a, (p, _, wp, _) in enumerate(state(q))])
 
+    def errors(q: np.ndarray) -> np.ndarray:
+        return np.array([rotation_angle(rot[a], r) for a, (_, r, _, _) in enumerate(state(q))])
+
     start = np.clip(q0, lo, hi)
-    res = minimize(
-        objective,
+    best, best_errs = start, np.full(2, np.inf)
+    finite = np.isfinite(lo) & np.isfinite(hi)
+    for s in [
         start,
-        jac=True,
-        method="SLSQP",
-        bounds=list(zip(lo, hi)),
-        constraints=[{"type": "ineq", "fun": within, "jac": within_jac}],
-        options={"maxiter": 200, "ftol": 1e-10},
-    )
-    q = res.x if np.all(within(res.x) >= -1e-6) else start
-    errs = np.array([rotation_angle(rot[a], r) for a, (_, r, _, _) in enumerate(state(q))])
-    return q, errs
+        *(
+            np.where(
+                finite,
+                rng.uniform(np.where(finite, lo, 0), np.where(finite, hi, 0)),
+                rng.uniform(-np.pi, np.pi, len(q0)),
+            )
+            for _ in range(seeds)
+        ),
+    ]:
+        res = minimize(
+            objective,
+            s,
+            jac=True,
+            method="SLSQP",
+            bounds=list(zip(lo, hi)),
+            constraints=[{"type": "ineq", "fun": within, "jac": within_jac}],
+            options={"maxiter": 200, "ftol": 1e-10},
+        )
+        if np.all(within(res.x) >= -1e-6) and np.sum(e := errors(res.x)) < np.sum(best_errs):
+            best, best_errs = res.x, e
+    return best, (best_errs if np.all(np.isfinite(best_errs)) else errors(start))
 
 
 def main() -> None:
@@ -94,19 +122,21 @@ def main() -> None:
     parser.add_argument("--every", type=int, default=10)
     parser.add_argument("--tol", type=float, default=0.01)
     parser.add_argument("--widen", default="")
+    parser.add_argument("--seeds", type=int, default=0)
     args = parser.parse_args()
     solver, *criteria = args.approach.split("+")
     takes = kit_takes(args.takes)
     print(
         f"{len(takes)} takes x {args.seconds:g} s, {args.approach}, every {args.every}th frame, "
-        f"position within {args.tol * 100:g} cm; widened: {args.widen or 'none'}"
+        f"position within {args.tol * 100:g} cm; widened: {args.widen or 'none'}; "
+        f"{args.seeds} random starts beside the solved frame"
     )
     head = f"{'robot':10s} {'fORI':>6s} {'fORI95':>7s} {'floor':>6s} {'floor95':>8s}"
     print(f"{head}  joints the floor leaves at a stop (share of frames)")
     for name in args.robots.split(","):
         robot = hlik.load_robot(name)
         widen = np.array([np.radians(90.0) if j in args.widen.split(",") else 0.0 for j in robot.joint_names])
-        solved, floor, stops = [], [], Counter()
+        solved, floor, stops, rng = [], [], Counter(), np.random.default_rng(0)
         for take in takes:
             spec = RunSpec(
                 motion=take,
@@ -119,7 +149,14 @@ def main() -> None:
             traj, ev = res.trajectory, res.evaluation
             for t in range(0, traj.q.shape[0], args.every):
                 q, errs = floor_pose(
-                    robot, traj.q[t], traj.targets.pos[t], traj.targets.rot[t], args.tol, widen
+                    robot,
+                    traj.q[t],
+                    traj.targets.pos[t],
+                    traj.targets.rot[t],
+                    args.tol,
+                    widen,
+                    args.seeds,
+                    rng,
                 )
                 solved.append(ev.fori[t])
                 floor.append(errs)

@@ -65,7 +65,8 @@ BASE = dict(
     solver="qp",
     stack="ee_pose",
     default_stack=True,
-    criteria=(),
+    criteria=("SYN", "HJA_r"),  # ee_pose's own
+    stack_criteria=("SYN", "HJA_r"),
     gradients="analytic",
     placement=None,
     scenario=None,
@@ -77,7 +78,7 @@ BASE = dict(
 VARIANTS = {
     "solver": ["jm", "jv", "slsqp"],
     "stack": [("my", False), ("relative_pose", False)],
-    "criteria": [("SYN",), ("SYN", "HJA_r")],
+    "criteria": [(), ("SYN",), ("SYN", "HJA_r", "EEA")],
     "gradients": ["fd"],
     "placement": ["mapped", "0.5,1,90"],
     "scenario": ["relative"],
@@ -106,6 +107,31 @@ def test_default_names_differ_for_runs_that_differ():
     assert len(set(tags)) == len(tags), [t for t in tags if tags.count(t) > 1]
     assert _tag() == "qp"  # the defaults add nothing
     assert all(re.fullmatch(r"[\w.,+-]+", t) for t in tags)
+
+
+def test_default_name_leaves_out_the_stacks_own_criteria():
+    assert _tag() == "qp" and _tag(criteria=()) == "qp_nocriteria" and _tag(criteria=("SYN",)) == "qp_SYN"
+    # a stack of the user's always names its criteria; one without any names none
+    assert _tag(stack=("my", False)) == "qp_my_SYN_HJA_r"
+    assert _tag(stack=("my", False), criteria=(), stack_criteria=()) == "qp_my"
+    assert _tag(solver="jm", criteria=(), stack_criteria=()) == "jm"  # jm adds no criteria
+
+
+def test_criteria_none_and_jm_beside_a_stack_with_criteria(short_take, tmp_path, monkeypatch):
+    """ee_pose adds SYN, HJA_r: --criteria none drops them, jm runs without them, and criteria named
+    for jm are still refused."""
+    monkeypatch.chdir(tmp_path)
+    common = ("--rate", "0", "--placement", "mapped")
+    bare = invoke("run", short_take, "--criteria", "none", *common)
+    jm = invoke("run", short_take, "--solver", "jm", *common)
+    assert bare.exit_code == 0 and jm.exit_code == 0, (bare.output, jm.output)
+    assert load_trajectory(tmp_path / "recordings" / "short_armar6_qp_nocriteria_native.npz").solver == "qp"
+    assert load_trajectory(tmp_path / "recordings" / "short_armar6_jm_native.npz").solver == "jm"
+    assert bare.stdout.startswith("short -> armar6 (qp)\n") and jm.stdout.startswith("short -> armar6 (jm)\n")
+    default = invoke("run", short_take, *common)
+    assert default.exit_code == 0 and default.stdout.startswith("short -> armar6 (qp + SYN, HJA_r)\n")
+    assert (tmp_path / "recordings" / "short_armar6_qp_native.npz").is_file()
+    one_line_error(invoke("run", short_take, "--solver", "jm", "--criteria", "SYN", *common), "jm")
 
 
 def test_copied_stack_and_plain_run_write_different_files(short_take, tmp_path, monkeypatch):

@@ -105,7 +105,7 @@ def test_a_second_start_not_taken_leaves_the_motion_as_it_was(cut_take, solver, 
     bit (JV's null-space memory included), with the iterations of every solve counted."""
     robot = hlik.load_robot("armar3")
     problem = build_problem(hlik.load_motion(cut_take, rate=100.0).crop(0.0, 0.3), robot)
-    solve, settings = SOLVERS[solver], load_stack("ee_pose").settings(solver, "armar3")
+    solve, settings = SOLVERS[solver], load_stack("ee_pose").with_criteria([]).settings(solver, "armar3")
     assert frames.hand_miss(problem, solve(problem, settings).q[0]) > 1.0
     again = solve(problem, settings)
     monkeypatch.setattr(frames, "FIRST_FRAME_TOLERANCE", (1e3, 1e3))  # never solved again
@@ -120,7 +120,7 @@ def test_a_first_frame_off_its_targets_starts_again_from_the_hands_ik(demo, solv
     """Without the second start (a switch share of 0 never switches) the left hand stays off for
     the whole stretch; with it, both hands are on target from the first frame on, every solver
     (each with its ee_pose settings for 2-Panda)."""
-    solve, settings = SOLVERS[solver], load_stack("ee_pose").settings(solver, "dual_panda")
+    solve, settings = SOLVERS[solver], load_stack("ee_pose").with_criteria([]).settings(solver, "dual_panda")
     monkeypatch.setattr(frames, "FIRST_FRAME_SWITCH", 0.0)
     dp, da = _errors(demo, solve(demo, settings).q)
     assert np.median(dp[:, 0]) > 0.02 or np.median(da[:, 0]) > 20.0, (np.median(dp, 0), np.median(da, 0))

@@ -31,7 +31,7 @@ from hlik.util.errors import HlikError
     ("change", "said"),
     [
         ({"solver": "ik"}, "unknown solver 'ik'"),
-        ({"criteria": ("SYN",)}, "jm maps joints and cannot add criteria"),
+        ({"solver": "jm", "criteria": ("SYN",)}, "jm maps joints and cannot add criteria"),
         ({"solver": "qp", "criteria": ("SYNN",)}, "SYNN"),
         ({"solver": "qp", "gradients": "fd"}, "--gradients fd is for --solver slsqp"),
         ({"solver": "slsqp", "gradients": "numeric"}, "unknown gradients 'numeric'"),

@@ -143,7 +143,7 @@ def test_cli_qp_with_criteria(takes, tmp_path):
     result = CliRunner().invoke(app, args)
     assert result.exit_code == 0, result.output
     assert out.is_file() and "fPOS mean" in result.stdout
-    bad = CliRunner().invoke(app, ["run", "--criteria", "SYN"])
+    bad = CliRunner().invoke(app, ["run", "--solver", "jm", "--criteria", "SYN"])
     assert bad.exit_code == 2 and "jm maps joints and cannot add criteria" in bad.stderr
     bad = CliRunner().invoke(app, ["run", "--solver", "qp", "--criteria", "NOPE"])
     assert bad.exit_code == 2 and "unknown criteria NOPE" in bad.stderr

@@ -30,7 +30,7 @@ def default_run(tmp_path_factory):
         mp.chdir(cwd)
         result = _invoke()
     assert result.exit_code == 0, result.output
-    return cwd / "recordings" / "demo_pour_wipe_armar6_jm.rrd", result
+    return cwd / "recordings" / "demo_pour_wipe_armar6_qp.rrd", result
 
 
 def _chunks(path):
@@ -64,7 +64,7 @@ def test_default_run_writes_recording_and_trajectory(default_run):
     assert sorted(p.name for p in rrd.parent.iterdir()) == [rrd.with_suffix(".npz").name, rrd.name]
     assert "fPOS mean" in result.stdout and str(rrd.name) in result.stdout
     traj = load_trajectory(rrd.with_suffix(".npz"))
-    assert traj.robot == "armar6" and traj.solver == "jm"
+    assert traj.robot == "armar6" and traj.solver == "qp"
     np.testing.assert_allclose(np.diff(traj.times), 0.01, atol=1e-9)  # --rate defaults to 100 Hz
 
 
@@ -204,6 +204,9 @@ def test_summary_reports_where_the_hands_lag():
     fpos[30:35] = 3 * LAG
     assert lag_spans(fpos, times) == "0.10-0.19 s (left), 0.30-0.34 s (both); 15 frames"
     assert lag_spans(np.zeros((50, 2)), times) == ""
+    one = np.zeros((50, 2))
+    one[18, 0] = 2 * LAG
+    assert lag_spans(one, times) == "0.18 s (left); 1 frame"  # not "0.18-0.18 s", "1 frames"
 
 
 def test_the_readmes_jm_errors_on_the_demo_are_current():

@@ -21,12 +21,14 @@ def test_bundled_stacks_load_for_every_solver():
         assert dict(stack.gamma) == {}  # Table II's gamma come from the criteria themselves
         for solver in ("qp", "jv", "slsqp"):
             settings = stack.settings(solver)
-            assert settings.scenario == stack.scenario and settings.criteria == ()
+            assert settings.scenario == stack.scenario and settings.criteria == stack.criteria
+    assert load_stack("ee_pose").criteria == ("SYN", "HJA_r")  # hlik run's default: the hands and SYN, HJA_r
 
 
 def test_ee_pose_stack_is_the_qp_default():
-    """The file a user copies and the defaults of the Python API are the same stack."""
-    assert load_stack("ee_pose").settings("qp") == QPSettings()
+    """The file a user copies and the defaults of the Python API are the same stack, but for the
+    criteria the file adds (the settings' default is the bare solver)."""
+    assert load_stack("ee_pose").with_criteria([]).settings("qp") == QPSettings()
 
 
 def test_a_solver_gamma_table_overrides_the_stack_gamma_for_that_solver_alone(tmp_path):
@@ -145,7 +147,7 @@ def test_stack_slsqp_settings_are_the_papers():
     from hlik.solvers.settings import SLSQPSettings
 
     assert load_stack("paper_opt").settings("slsqp") == SLSQPSettings()  # the paper's OPT
-    tuned = load_stack("ee_pose").settings("slsqp")
+    tuned = load_stack("ee_pose").with_criteria([]).settings("slsqp")
     assert tuned.gamma == {"SYN": 3.0, "SOA_x": 2.0, "EEA": 2.0, "MIS": 0.25}  # hands first: README
     paper = replace(tuned, criterion_cost=10.0, max_eval=100, orientation_cost=9.0, elbow_cost=0.0, gamma={})
     assert paper == SLSQPSettings()
@@ -239,7 +241,7 @@ def test_cli_rejects_fd_gradients_outside_slsqp():
 def test_stack_jv_settings_are_the_defaults():
     from hlik.solvers.jv import JVSettings
 
-    assert load_stack("ee_pose").settings("jv") == JVSettings()
+    assert load_stack("ee_pose").with_criteria([]).settings("jv") == JVSettings()
 
 
 def test_switches_and_collision_settings_read_from_a_stack_file(tmp_path):

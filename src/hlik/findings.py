@@ -145,6 +145,8 @@ def lag_spans(fpos: np.ndarray, times: np.ndarray, shown: int = 3) -> str:
     for start, stop in stretches(any_off):
         left, right = bool(off[start:stop, 0].any()), bool(off[start:stop, 1].any())
         which = "both" if left and right else ("left" if left else "right")
-        spans.append(f"{times[start]:.2f}-{times[stop - 1]:.2f} s ({which})")
+        when = f"{times[start]:.2f}" if stop - start == 1 else f"{times[start]:.2f}-{times[stop - 1]:.2f}"
+        spans.append(f"{when} s ({which})")
     more = f", {len(spans) - shown} more" if len(spans) > shown else ""
-    return f"{', '.join(spans[:shown])}{more}; {int(any_off.sum())} frames"
+    n = int(any_off.sum())
+    return f"{', '.join(spans[:shown])}{more}; {n} frame{'s' if n != 1 else ''}"

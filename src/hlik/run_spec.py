@@ -17,7 +17,7 @@ from types import MappingProxyType
 from hlik.human.formats import motion_format
 from hlik.human.limits import RATE_RANGE, scale_factor
 from hlik.robot.files import robot_toml
-from hlik.solvers.catalog import SPECS, check_solver
+from hlik.solvers.catalog import SPECS, check_solver, solver_spec
 from hlik.solvers.stack_file import SCENARIOS, Stack, check_criteria, load_stack
 from hlik.util.errors import HlikError, SettingsError
 from hlik.util.paths import demo_motion_path
@@ -41,9 +41,12 @@ class RunSpec:
         motion: Motion file (any format :func:`hlik.human.load.load_motion` reads); None: the
             bundled demo.
         robot: Robot name (``hlik robots``) or path of a robot ``.toml``.
-        solver: ``jm``, ``jv``, ``qp`` or ``slsqp``.
-        stack: Task-stack ``.toml`` or a bundled stack's name; its weights and criteria.
-        criteria: Criteria replacing the stack's (None: the stack's).
+        solver: ``jm``, ``jv``, ``qp``, ``slsqp`` or ``mink``. Default ``qp``: on every bundled
+            robot the only one whose motion keeps the hands on target, every limit and
+            the human likeness at once in milliseconds a frame (README "How they compare").
+        stack: Task-stack ``.toml`` or a bundled stack's name; its weights and criteria (the
+            criteria only for a solver that adds them: ``jm`` maps the joints).
+        criteria: Criteria replacing the stack's (None: the stack's; ``()``: none).
         scenario: ``pose`` or ``relative`` (None: the stack's).
         placement: Placement rule or ``X,Y,YAW[,Z]`` (None: the robot's), ``optimize`` included.
         scale: Subject scale, a factor or ``auto`` (None: the robot's ``subject_scale``).
@@ -60,7 +63,7 @@ class RunSpec:
 
     motion: Path | None = None
     robot: str | Path = "armar6"
-    solver: str = "jm"
+    solver: str = "qp"
     stack: str | Path = "ee_pose"
     criteria: tuple[str, ...] | None = None
     scenario: str | None = None
@@ -79,12 +82,14 @@ class RunSpec:
         return Path(self.motion) if self.motion is not None else demo_motion_path()
 
     def task_stack(self) -> Stack:
-        """The stack with this spec's criteria.
+        """The stack with this spec's criteria (none for a solver that adds none).
 
         Raises:
             HlikError: the stack file is missing or malformed, or names an unknown criterion.
         """
         stack = load_stack(self.stack)
+        if not solver_spec(self.solver).takes_criteria:
+            return stack.with_criteria([])  # jm maps the joints: the stack's criteria are the others'
         return stack.with_criteria(list(self.criteria)) if self.criteria is not None else stack
 
     def check(self) -> Stack:
@@ -135,7 +140,7 @@ class RunSpec:
             if path is not None and not Path(path).exists():
                 raise SettingsError(f"{path} ({what}): no such file or folder")
         stack = self.task_stack()
-        if stack.criteria and not solver.takes_criteria:
+        if self.criteria and not solver.takes_criteria:
             takers = ", ".join(n for n, s in SPECS.items() if s.takes_criteria)
             raise SettingsError(
                 f"{self.solver} maps joints and cannot add criteria; choose --solver {takers}"

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import shlex
 from collections.abc import Sequence
+from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
 
@@ -42,8 +43,9 @@ SolverOpt = Annotated[
     typer.Option(
         "--solver",
         "-s",
-        help="Retargeting solver: jm, jv, qp, slsqp, or mink (the QP on mink, with a stack's \\[mink] "
-        "tasks and limits).",
+        help="Retargeting solver: qp (per-frame QP: hands on target within every limit, the stack's "
+        "criteria), jm (the paper's joint mapping), jv, slsqp, or mink (the QP on mink, with a stack's "
+        "\\[mink] tasks and limits).",
     ),
 ]
 OutOpt = Annotated[
@@ -70,7 +72,8 @@ StackOpt = Annotated[
 CriteriaOpt = Annotated[
     str | None,
     typer.Option(
-        help="Human-likeness criteria to add (jv, qp, slsqp, mink), e.g. SYN,HJA_r; replaces the stack's."
+        help="Human-likeness criteria to add (jv, qp, slsqp, mink), e.g. SYN,HJA_r, or none; replaces "
+        "the stack's (ee_pose: SYN,HJA_r)."
     ),
 ]
 RunScenarioOpt = Annotated[
@@ -148,7 +151,7 @@ def _span(text: str | None) -> tuple[float, float] | None:
 def run(
     motion: MotionArg = None,
     robot: RobotOpt = "armar6",
-    solver: SolverOpt = "jm",
+    solver: SolverOpt = "qp",
     out: OutOpt = None,
     force: ForceOpt = False,
     rate: RateOpt = 100.0,
@@ -171,7 +174,7 @@ def run(
 
     with one_line():
         corpus, corpus_source = resolve_corpus(corpus)
-        chosen = None if criteria is None else tuple(c.strip() for c in criteria.split(",") if c.strip())
+        chosen = None if criteria is None else _criteria(criteria)
         spec = RunSpec(
             motion=motion,
             robot=robot,
@@ -247,7 +250,9 @@ def _report(result: RunResult, rrd: Path, npz: Path, corpus_source: str) -> None
     traj, ev, spec = result.trajectory, result.evaluation, result.spec
     # Lines naming a file or a command are printed whole, each on its own line: a table cell would
     # break a path at the console's width (80 columns when piped).
-    console.print(f"{spec.motion_path.stem} -> {result.robot.name} ({traj.solver})", soft_wrap=True)
+    criteria = spec.task_stack().criteria
+    how = traj.solver + (f" + {', '.join(criteria)}" if criteria else "")
+    console.print(f"{spec.motion_path.stem} -> {result.robot.name} ({how})", soft_wrap=True)
     print_table(run_summary(traj, result.motion, result.solve_seconds, ev, _solver_note(result)))
     size = lambda path: f"{path.stat().st_size / 1e6:.1f} MB"  # noqa: E731
     console.print(f"recording: {rrd} ({size(rrd)})", soft_wrap=True)
@@ -353,11 +358,13 @@ def _tag(spec: RunSpec, robot: RobotDefaults, layout: str, corpus_source: str) -
 
     stack = spec.task_stack()
     bundled = not Path(spec.stack).exists() and (tasks_dir() / f"{spec.stack}.toml").is_file()
+    own = replace(spec, criteria=None).task_stack().criteria  # the stack file's (none for jm)
     return _run_tag(
         solver=spec.solver,
         stack=stack.name if bundled else _stack_label(Path(spec.stack).stem, stack.name),
         default_stack=bundled and stack.name == "ee_pose",
         criteria=stack.criteria,
+        stack_criteria=own,
         gradients=spec.gradients,
         placement=spec.placement if spec.placement not in (None, robot.placement) else None,
         scale=str(spec.scale) if spec.scale not in (None, str(robot.subject_scale)) else None,
@@ -377,6 +384,7 @@ def _run_tag(
     stack: str,
     default_stack: bool,
     criteria: Sequence[str],
+    stack_criteria: Sequence[str] = (),
     gradients: str,
     placement: str | None,
     scale: str | None = None,
@@ -389,8 +397,14 @@ def _run_tag(
     time_scale: float = 1.0,
 ) -> str:
     """The part of the default output name after motion and robot: every choice that changes the
-    result, defaults left out, e.g. ``slsqp_SYN_HJA_r_fd``, ``qp_my_stack_at-0.4_1.2_90``."""
-    parts = [solver, *(() if default_stack else (stack,)), *criteria]
+    result, defaults left out, e.g. ``slsqp_SYN_HJA_r_fd``, ``qp_my_stack_at-0.4_1.2_90``: the
+    criteria where they are not the default stack's own (``stack_criteria``), ``nocriteria`` where
+    a stack's own are left out."""
+    if default_stack and tuple(criteria) == tuple(stack_criteria):
+        named: Sequence[str] = ()
+    else:
+        named = criteria or (("nocriteria",) if stack_criteria else ())
+    parts = [solver, *(() if default_stack else (stack,)), *named]
     parts += ["fd"] if gradients == "fd" else []
     parts += [f"at-{placement}"] if placement is not None else []
     parts += [f"scale-{scale}"] if scale is not None else []
@@ -402,6 +416,12 @@ def _run_tag(
     parts += [f"x{time_scale:g}"] if time_scale != 1.0 else []
     parts += [f"corpus-{Path(corpus).resolve().name or 'root'}"] if corpus is not None else []
     return "_".join(parts)
+
+
+def _criteria(text: str) -> tuple[str, ...]:
+    """``--criteria``: names split at commas; ``none`` (or nothing) for none."""
+    names = tuple(c.strip() for c in text.split(",") if c.strip())
+    return () if names in ((), ("none",)) else names
 
 
 def _stack_label(stem: str, name: str) -> str:
