@@ -664,6 +664,14 @@ def test_the_printed_evaluate_command_gives_the_runs_scores(tmp_path, takes):
     scores = json.loads(CliRunner().invoke(app, [*command[1:], "--json"]).stdout)
     shown = next(x for x in run.stdout.splitlines() if x.startswith("human likeness"))
     assert f"m_hl = {scores['m_hl']:.3f}" in shown and f"m_hl,f = {scores['m_hl_f']:.3f}" in shown, shown
+    # the file knows its scenario: without --scenario hlik evaluate scores the run's, not pose
+    at = command.index("--scenario")
+    bare = json.loads(CliRunner().invoke(app, [*command[1:at], *command[at + 2 :], "--json"]).stdout)
+    assert bare["m_f"] == scores["m_f"] and bare["m_hl_f"] == scores["m_hl_f"]
+    posed = json.loads(
+        CliRunner().invoke(app, [*command[1:at], *command[at + 2 :], "--scenario", "pose", "--json"]).stdout
+    )
+    assert posed["m_f"] != scores["m_f"]
 
 
 def _checks(n: int, **changes):

@@ -89,6 +89,25 @@ def test_inconsistent_shapes_are_refused(tmp_path, demo):
         load_trajectory(path)
 
 
+def test_the_scenario_is_stored_and_files_without_it_still_read(tmp_path, demo):
+    traj = retarget(demo, load_robot("armar6"))
+    assert traj.scenario is None and load_trajectory(traj.save(tmp_path / "none.npz")).scenario is None
+    for scenario in ("pose", "relative"):
+        back = load_trajectory(replace(traj, scenario=scenario).save(tmp_path / f"{scenario}.npz"))
+        assert back.scenario == scenario
+    with np.load(tmp_path / "relative.npz") as z:
+        arrays = dict(z)
+    del arrays["scenario"]  # a file written before the scenario was stored
+    np.savez(tmp_path / "older.npz", **arrays)
+    assert load_trajectory(tmp_path / "older.npz").scenario is None
+    arrays["scenario"] = np.array("relatve")
+    np.savez(tmp_path / "bad.npz", **arrays)
+    with pytest.raises(
+        TrajectoryFormatError, match="bad.npz: scenario is .*relatve.*, expected pose or relative"
+    ):
+        load_trajectory(tmp_path / "bad.npz")
+
+
 @pytest.mark.parametrize("robot", ROBOTS)
 def test_jm_on_every_take_is_finite_and_within_limits(robot, takes):
     r = load_robot(robot)

@@ -179,6 +179,7 @@ def run(
     _say(progress, stage, 0, motion.n_frames)
     wall, cpu = time.perf_counter(), time.process_time()
     traj = retarget(motion, robot, get_solver(spec.solver, settings, step, limits), placement, learned)
+    traj = replace(traj, scenario=scenario)  # what hlik evaluate scores it by, unless told
     wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
     _say(progress, "evaluating the criteria")
     ev = evaluate(traj, robot, learned, scenario=scenario, metric=metric)

@@ -23,6 +23,7 @@ from hlik.problem.reference import HumanReference
 from hlik.problem.targets import HandTargets
 from hlik.robot.model import Robot
 from hlik.solvers.base import Diagnostics
+from hlik.solvers.stack_file import SCENARIOS
 from hlik.util.arrayfile import array_shapes
 from hlik.util.atomic import atomic_path
 from hlik.util.errors import TrajectoryFormatError
@@ -51,6 +52,9 @@ class Trajectory:
             fitted to keypoints keeps them, in memory, not in the ``.npz``).
         reference: The human reference of every frame (mapped pose, Ψ, manipulability).
         diagnostics: How the solver reached each frame.
+        scenario: The functional scenario it was made for, ``pose`` or ``relative`` (the run's
+            stack; what ``hlik evaluate`` scores by default), None where not known (a
+            :func:`hlik.retarget` call, a file written before it was stored).
     """
 
     robot: str
@@ -65,6 +69,7 @@ class Trajectory:
     motion: HumanMotion
     reference: HumanReference
     diagnostics: Diagnostics
+    scenario: str | None = None
 
     @property
     def n_frames(self) -> int:
@@ -253,6 +258,10 @@ def _check_arrays(path: Path, a: dict[str, np.ndarray]) -> None:
         raise TrajectoryFormatError(f"{path}: missing array {missing[0]!r}")
     if a["times"].size == 0:
         raise TrajectoryFormatError(f"{path}: no frames")
+    if "scenario" in a:
+        _check_kind(path, "scenario", a["scenario"], "s")
+        if a["scenario"].shape != () or str(a["scenario"]) not in ("", *SCENARIOS):
+            raise TrajectoryFormatError(f"{path}: scenario is {a['scenario']!r}, expected pose or relative")
     _check_kind(path, "obj.names", a["obj.names"], "s")
     for i in range(len(a["obj.names"]) if a["obj.names"].ndim == 1 else 0):
         spec |= {f"obj.{i}.{k}": v for k, v in _OBJECT_SPEC.items()}
@@ -358,6 +367,7 @@ def _to_arrays(t: Trajectory) -> dict[str, np.ndarray]:
         "diag.iterations": d.iterations,
         "diag.converged": d.converged,
         "diag.failed": d.failed,
+        "scenario": np.array(t.scenario or ""),
         "diag.solve_time": d.solve_time,
     }
     for i, obj in enumerate(ref.objects.values()):
@@ -402,4 +412,5 @@ def _from_arrays(a: dict[str, np.ndarray]) -> Trajectory:
         diagnostics=Diagnostics(
             a["diag.iterations"], a["diag.converged"], a["diag.failed"], a["diag.solve_time"]
         ),
+        scenario=str(a["scenario"]) or None if "scenario" in a else None,  # optional: added within format 3
     )

@@ -142,9 +142,6 @@ def resolve_corpus(corpus: Path | None) -> tuple[Path | None, str]:
     return corpus_setting()
 
 
-ScenarioOpt = Annotated[
-    str, typer.Option(help="Functional score: pose (hand poses) or relative (relative pose of the hands).")
-]
 MetricOpt = Annotated[
     Path | None,
     typer.Option(

@@ -14,7 +14,6 @@ from hlik.cli.app import (
     FLAG,
     CorpusOpt,
     MetricOpt,
-    ScenarioOpt,
     check_trajectory_file,
     console,
     one_line,
@@ -24,6 +23,14 @@ from hlik.cli.app import (
     warn,
 )
 
+EvaluateScenarioOpt = Annotated[
+    str | None,
+    typer.Option(
+        help="Functional score: pose (hand poses) or relative (relative pose of the hands); default: "
+        "the one the run was made for (its stack's), pose for a file that does not say."
+    ),
+]
+
 
 def evaluate(
     trajectory: Annotated[Path, typer.Argument(help="Trajectory .npz written by `hlik run`.")],
@@ -31,7 +38,7 @@ def evaluate(
         bool, typer.Option("--json", help="Print one JSON object.", metavar=FLAG, show_default=False)
     ] = False,
     corpus: CorpusOpt = None,
-    scenario: ScenarioOpt = "pose",
+    scenario: EvaluateScenarioOpt = None,
     metric: MetricOpt = None,
 ) -> None:
     """Human-likeness criteria h_i and scores m_i, m_hl, m_f and m_hl,f of a trajectory."""
@@ -43,9 +50,11 @@ def evaluate(
         from hlik.criteria.unified import check_scenario, load_metric, midpoints
         from hlik.metrics import evaluate as evaluate_trajectory
 
-        check_scenario(scenario)
+        if scenario is not None:
+            check_scenario(scenario)
         unified_metric = load_metric(metric) if metric is not None else None
         traj, r = trajectory_and_robot(trajectory)
+        scenario = scenario or traj.scenario or "pose"
         folder, source = resolve_corpus(corpus)
         learned = learn(r, folder)
         ev = evaluate_trajectory(traj, r, learned, scenario=scenario, metric=unified_metric)
