@@ -735,6 +735,27 @@ def test_the_controller_row_says_how_the_motion_ends():
     assert _checks(10).stop_time == 0.0 and "ends at rest" in controller_line(_checks(10))
     backward = _checks(10, end_speed=np.array([-0.5]), acceleration_limit=np.array([2.0]))
     assert backward.stop_time == pytest.approx(0.25)  # a joint moving the other way stops as long
+    unlimited = _checks(10, end_speed=np.array([0.5]), acceleration_limit=np.array([np.inf]))
+    assert "(no acceleration limits given)" in controller_line(unlimited)
+
+
+def test_the_json_has_no_ratio_to_a_limit_not_given():
+    """A robot without jerk (acceleration, effort) limits has null ratios and time to stop in
+    ``hlik evaluate --json``, not 0 or Infinity (which no JSON parser must accept)."""
+    import json
+
+    given = _checks(10, end_speed=np.array([0.5]), jerk_ratio=np.full(10, 0.3)).to_json()
+    assert given["max_jerk_ratio"] == 0.3 and given["stop_time"] == 0.5
+    none = _checks(
+        10,
+        end_speed=np.array([0.5]),
+        acceleration_limit=np.array([np.inf]),
+        jerk_limit=np.array([np.inf]),
+        effort_limit=np.array([np.inf]),
+    ).to_json()
+    for key in ("max_acceleration_ratio", "max_jerk_ratio", "max_torque_ratio", "stop_time"):
+        assert none[key] is None, key
+    json.loads(json.dumps(none, allow_nan=False))
 
 
 def test_a_span_past_the_take_is_refused_and_one_past_its_end_is_cut(short_take, tmp_path, monkeypatch):

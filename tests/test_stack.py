@@ -291,6 +291,23 @@ def test_a_weight_by_its_old_or_a_misspelt_name_is_refused_with_the_name_to_use(
     )
 
 
+def test_a_velocity_limit_without_velocities_takes_the_robots():
+    """mink's VelocityLimit limits nothing unless given speeds: from a stack file it gets the
+    robot's joint speed limits, and speeds the file gives replace them."""
+    import numpy as np
+
+    import hlik
+    from hlik.solvers.mink_specs import build
+
+    for name in ("armar3", "dual_panda"):
+        robot = hlik.load_robot(name)
+        limit = build(robot, {"type": "VelocityLimit"})
+        np.testing.assert_array_equal(limit.limit, robot.velocity_limit[limit.indices])
+        assert len(limit.indices) == np.count_nonzero(np.isfinite(robot.velocity_limit)) > 0
+        given = build(robot, {"type": "VelocityLimit", "velocities": {robot.joint_names[1]: 0.3}})
+        assert list(given.indices) == [1] and list(given.limit) == [0.3]
+
+
 def test_a_stack_file_names_mink_tasks_and_limits_beside_hlik_s(tmp_path):
     """``[mink]`` starts from ``[qp]`` and adds mink's own classes by name: ``--solver mink`` is the
     QP (the same joint angles without extras), and a PostureTask pulls the robot toward home; an

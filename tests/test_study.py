@@ -323,6 +323,10 @@ def test_findings_are_judged_only_on_enough_data():
     assert opt == ["not judged: 2 cells per approach; needs 3"]
     enough = Ranking("pose", tuple({**r, "cells": 3} for r in rows))
     assert [v for f, v, _ in findings(corr, [enough]) if "OPT" in f] == ["yes"]
+    quick = Ranking("pose", ({"approach": "jm", "m_hl_f": 0.6, "cells": 8}, rows[1]))  # no slsqp
+    assert [v for f, v, _ in findings(corr, [quick]) if "OPT" in f] == [
+        "not judged: the study ran no slsqp approach"
+    ]
     one = Correlation(
         names, MappingProxyType({"armar6": mean}), mean, float("nan"), 0.05, takes=4, frames=2000
     )

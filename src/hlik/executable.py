@@ -111,7 +111,8 @@ class ControllerChecks:
         limits, s (0 at rest; ``inf`` if a moving joint has no limit)."""
         with np.errstate(divide="ignore", invalid="ignore"):
             speed = np.abs(self.end_speed)
-            times = np.where(speed > 0, speed / self.acceleration_limit, 0.0)
+            limit = np.where(np.isfinite(self.acceleration_limit), self.acceleration_limit, 0.0)
+            times = np.where(speed > 0, speed / limit, 0.0)  # moving without a limit: inf
         return float(np.max(times, initial=0.0))
 
     @property
@@ -132,18 +133,24 @@ class ControllerChecks:
         return self.joint_names[j], float(values[k, j])
 
     def to_json(self) -> dict:
-        """The ``"controller"`` object of ``hlik evaluate --json``."""
+        """The ``"controller"`` object of ``hlik evaluate --json``: a ratio to limits the robot
+        does not give, and the time to stop without acceleration limits, are null (not 0, inf)."""
         accel_joint, _ = self.peak(self.acceleration, self.acceleration_limit)
         torque_joint, torque = self.peak(self.torque, self.effort_limit)
+
+        def ratio(values: np.ndarray, given: bool) -> float | None:
+            return float(values.max(initial=0.0)) if given else None
+
+        stop = self.stop_time
         return {
-            "max_acceleration_ratio": float(self.acceleration_ratio.max(initial=0.0)),
+            "max_acceleration_ratio": ratio(self.acceleration_ratio, self.has_acceleration_limits),
             "acceleration_joint": accel_joint,
             "frames_over_acceleration": self.frames_over_acceleration,
             "max_jerk": float(self.jerk.max(initial=0.0)),
-            "max_jerk_ratio": float(self.jerk_ratio.max(initial=0.0)),
+            "max_jerk_ratio": ratio(self.jerk_ratio, self.has_jerk_limits),
             "jerk_joint": self.jerk_joint,
             "frames_over_jerk": self.frames_over_jerk,
-            "max_torque_ratio": float(self.torque_ratio.max(initial=0.0)),
+            "max_torque_ratio": ratio(self.torque_ratio, self.has_effort_limits),
             "torque_joint": torque_joint,
             "max_torque": abs(torque),
             "frames_over_effort": self.frames_over_effort,
@@ -152,7 +159,7 @@ class ControllerChecks:
             "base_height": self.base_height,
             "lowest_point": self.lowest_point,
             "end_speed": float(np.max(np.abs(self.end_speed), initial=0.0)),
-            "stop_time": self.stop_time,
+            "stop_time": stop if np.isfinite(stop) else None,
             "acceleration_limits": self.has_acceleration_limits,
             "jerk_limits": self.has_jerk_limits,
             "effort_limits": self.has_effort_limits,

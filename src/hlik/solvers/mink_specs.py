@@ -63,6 +63,9 @@ def build(robot: Robot, spec: Mapping[str, object]) -> mink.Task | mink.Limit:
     cls = getattr(mink, str(spec["type"]))
     if "model" in inspect.signature(cls).parameters:
         params["model"] = robot.model
+    if cls is mink.VelocityLimit and "velocities" not in params:  # mink's default limits nothing
+        finite = np.isfinite(robot.velocity_limit)
+        params["velocities"] = dict(zip(np.asarray(robot.joint_names)[finite], robot.velocity_limit[finite]))
     try:
         obj = cls(**params)
         if isinstance(obj, mink.PostureTask) and not isinstance(obj, mink.DampingTask):  # damping: no target

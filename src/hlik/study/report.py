@@ -150,20 +150,22 @@ def findings(corr: Correlation, rankings: Sequence[Ranking]) -> list[tuple[str, 
 
 def _opt_beats_jv(ranking: Ranking) -> list[tuple[str, str, str]]:
     """The finding "OPT beats JV" in one scenario's ranking, judged on the best approach of each
-    with at least :data:`MIN_CELLS` cells (none where the study ran only one of them)."""
+    with at least :data:`MIN_CELLS` cells; not judged, and said why, where the study ran only one
+    of them or neither (the quick study runs no SLSQP)."""
     best = {}
+    finding = f"OPT (slsqp) beats JV ({ranking.scenario})"
     for solver in ("slsqp", "jv"):
         rows = [r for r in ranking.rows if r["approach"].split("+")[0].split(" ")[0] == solver]
         top = max(rows, key=lambda r: r["m_hl_f"], default=None)
         if top is None:
-            return []
+            return [(finding, f"not judged: the study ran no {solver} approach", "-")]
         best[solver] = (float(top["m_hl_f"]), int(top["cells"]))
     (opt, n_opt), (jv, n_jv) = best["slsqp"], best["jv"]
     cells = min(n_opt, n_jv)
     verdict = f"not judged: {cells} cells per approach; needs {MIN_CELLS}" if cells < MIN_CELLS else "yes"
     return [
         (
-            f"OPT (slsqp) beats JV ({ranking.scenario})",
+            finding,
             verdict if cells < MIN_CELLS or opt > jv else "no",
             f"best m_hl,f {opt:.3f} vs {jv:.3f} ({cells} cells each)",
         )
