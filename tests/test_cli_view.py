@@ -127,11 +127,17 @@ def test_criteria_none_and_jm_beside_a_stack_with_criteria(short_take, tmp_path,
     assert bare.exit_code == 0 and jm.exit_code == 0, (bare.output, jm.output)
     assert load_trajectory(tmp_path / "recordings" / "short_armar6_qp_nocriteria_native.npz").solver == "qp"
     assert load_trajectory(tmp_path / "recordings" / "short_armar6_jm_native.npz").solver == "jm"
-    assert bare.stdout.startswith("short -> armar6 (qp)\n") and jm.stdout.startswith("short -> armar6 (jm)\n")
+    assert bare.stdout.startswith("short -> armar6 (qp, no criteria)\n")
+    assert jm.stdout.startswith("short -> armar6 (jm)\n")
     default = invoke("run", short_take, *common)
     assert default.exit_code == 0 and default.stdout.startswith("short -> armar6 (qp + SYN, HJA_r)\n")
     assert (tmp_path / "recordings" / "short_armar6_qp_native.npz").is_file()
     one_line_error(invoke("run", short_take, "--solver", "jm", "--criteria", "SYN", *common), "jm")
+    # an empty value (an unset shell variable) and none beside names are refused; NONE is none
+    one_line_error(invoke("run", short_take, "--criteria", " , ", *common), "--criteria is empty")
+    one_line_error(invoke("run", short_take, "--criteria", "none,SYN", *common), "none means no criteria")
+    again = invoke("run", short_take, "--criteria", "NONE", "--force", *common)
+    assert again.exit_code == 0 and again.stdout.startswith("short -> armar6 (qp, no criteria)\n")
 
 
 def test_copied_stack_and_plain_run_write_different_files(short_take, tmp_path, monkeypatch):
@@ -668,6 +674,9 @@ def test_the_printed_evaluate_command_gives_the_runs_scores(tmp_path, takes):
     at = command.index("--scenario")
     bare = json.loads(CliRunner().invoke(app, [*command[1:at], *command[at + 2 :], "--json"]).stdout)
     assert bare["m_f"] == scores["m_f"] and bare["m_hl_f"] == scores["m_hl_f"]
+    assert bare["corpus"].startswith(f"{corpus} (1 file")  # which corpus the scores came from
+    table = CliRunner().invoke(app, command[1:])
+    assert f"criteria learned from: {corpus} (1 file" in table.stdout
     posed = json.loads(
         CliRunner().invoke(app, [*command[1:at], *command[at + 2 :], "--scenario", "pose", "--json"]).stdout
     )

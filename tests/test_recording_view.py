@@ -134,7 +134,7 @@ def test_camera_is_in_front_and_frames_both_figures(run, armar6):
     human = human_model(traj.motion.height)
     rows = slice(None)
     human_pos = body_poses(human, qpos_trajectory(human, traj.motion.frames(rows)))[0][:, 1:]
-    shown = _display_placement(traj.placement, "side")
+    shown = _display_placement(traj, armar6, "side")
     robot_pos = body_poses(armar6.model, traj.q)[0][:, 1:] @ shown.rotation.T + shown.translation
     for points in (human_pos.reshape(-1, 3), robot_pos.reshape(-1, 3)):
         _assert_in_view(cam, points)
@@ -142,6 +142,29 @@ def test_camera_is_in_front_and_frames_both_figures(run, armar6):
     alone = robot_camera(traj, armar6)
     assert alone.position[1] > 0.5
     _assert_in_view(alone, body_poses(armar6.model, traj.q)[0][:, 1:].reshape(-1, 3))
+
+
+def test_the_side_layout_keeps_the_figures_apart(armar6):
+    """The demo's subject, scaled to ARMAR-6's arms, reaches sideways: the side layout shifts the
+    robot further than its 1.2 m until no body of either comes within SIDE_GAP of the other along the
+    shift, frame by frame; a shift never falls below SPACING."""
+    import hlik
+    from hlik.recording.scene import SIDE_GAP, SPACING, side_spacing
+
+    traj = hlik.run(hlik.RunSpec(robot="armar6", solver="jm", span=(2.0, 5.0))).trajectory
+    shift = side_spacing(traj, armar6)  # from 24 frames spread over the take
+    assert shift > SPACING
+    shown = _display_placement(traj, armar6, "side")
+    np.testing.assert_allclose(
+        shown.translation - traj.placement.translation, shift * traj.placement.rotation[:, 0]
+    )
+    human = human_model(traj.motion.height)
+    human_pos = body_poses(human, qpos_trajectory(human, traj.motion.frames(slice(None))))[0][:, 1:]
+    robot_pos = body_poses(armar6.model, traj.q)[0][:, 1:] @ shown.rotation.T + shown.translation
+    x = traj.placement.rotation[:, 0]
+    gap = (robot_pos @ x).min(axis=1) - (human_pos @ x).max(axis=1)  # (T,) along the shift
+    assert gap.min() >= SIDE_GAP - 0.02  # between the sampled frames, a little nearer
+    assert _display_placement(traj, armar6, "overlay") == traj.placement
 
 
 def _assert_in_view(cam, points):

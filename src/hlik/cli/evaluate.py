@@ -22,6 +22,7 @@ from hlik.cli.app import (
     trajectory_and_robot,
     warn,
 )
+from hlik.cli.run import _corpus_label
 
 EvaluateScenarioOpt = Annotated[
     str | None,
@@ -59,8 +60,9 @@ def evaluate(
         learned = learn(r, folder)
         ev = evaluate_trajectory(traj, r, learned, scenario=scenario, metric=unified_metric)
     warn([*learned.notes, *([DEMO_CORPUS_WARNING] if folder is None and not source else [])])
-    if json_out:
-        sys.stdout.write(json.dumps(ev.to_json(), indent=2) + "\n")
+    corpus_label = _corpus_label(folder, learned.corpus, source)
+    if json_out:  # the recording's panel holds ev.to_json(); the corpus is the command's own
+        sys.stdout.write(json.dumps({**ev.to_json(), "corpus": corpus_label}, indent=2) + "\n")
         return
     x0 = midpoints(scenario, ev.metric)
     title = f"{trajectory.name}: {Path(traj.robot).stem}, {traj.solver}; weights and x0: {ev.metric.source}"
@@ -69,3 +71,4 @@ def evaluate(
         table.add_row(k, f"{ev.h[k].mean():.4g}", f"{x0[k]:g}", f"{ev.m[k]:.3f}")
     print_table(table)
     console.print(f"m_hl = {ev.m_hl:.3f}   m_f ({scenario}) = {ev.m_f:.3f}   m_hl,f = {ev.m_hl_f:.3f}")
+    console.print(f"criteria learned from: {corpus_label}", soft_wrap=True)

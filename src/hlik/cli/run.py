@@ -247,11 +247,14 @@ def _outputs(
 
 def _report(result: RunResult, rrd: Path, npz: Path, corpus_source: str) -> None:
     """The summary, the scores, the warnings and the commands to go on with."""
+    from hlik.solvers.catalog import solver_spec
+
     traj, ev, spec = result.trajectory, result.evaluation, result.spec
     # Lines naming a file or a command are printed whole, each on its own line: a table cell would
     # break a path at the console's width (80 columns when piped).
     criteria = spec.task_stack().criteria
     how = traj.solver + (f" + {', '.join(criteria)}" if criteria else "")
+    how += ", no criteria" if not criteria and solver_spec(spec.solver).takes_criteria else ""
     console.print(f"{spec.motion_path.stem} -> {result.robot.name} ({how})", soft_wrap=True)
     print_table(run_summary(traj, result.motion, result.solve_seconds, ev, _solver_note(result)))
     size = lambda path: f"{path.stat().st_size / 1e6:.1f} MB"  # noqa: E731
@@ -397,7 +400,7 @@ def _run_tag(
     time_scale: float = 1.0,
 ) -> str:
     """The part of the default output name after motion and robot: every choice that changes the
-    result, defaults left out, e.g. ``slsqp_SYN_HJA_r_fd``, ``qp_my_stack_at-0.4_1.2_90``: the
+    result, defaults left out, e.g. ``slsqp_SYN_fd``, ``qp_my_stack_at-0.4_1.2_90``: the
     criteria where they are not the default stack's own (``stack_criteria``), ``nocriteria`` where
     a stack's own are left out."""
     if default_stack and tuple(criteria) == tuple(stack_criteria):
@@ -419,9 +422,20 @@ def _run_tag(
 
 
 def _criteria(text: str) -> tuple[str, ...]:
-    """``--criteria``: names split at commas; ``none`` (or nothing) for none."""
+    """``--criteria``: names split at commas, or ``none`` (any case) for none.
+
+    Raises:
+        HlikError: nothing given (an empty shell variable must not drop the stack's criteria
+            unsaid), or ``none`` beside names.
+    """
     names = tuple(c.strip() for c in text.split(",") if c.strip())
-    return () if names in ((), ("none",)) else names
+    if not names:
+        raise HlikError("--criteria is empty: give names (e.g. SYN,HJA_r), or none for no criteria")
+    if any(n.lower() == "none" for n in names):
+        if len(names) > 1:
+            raise HlikError(f"--criteria {text}: none means no criteria and takes no names beside it")
+        return ()
+    return names
 
 
 def _stack_label(stem: str, name: str) -> str:

@@ -10,11 +10,12 @@ import numpy as np
 import rerun as rr
 from scipy.ndimage import median_filter
 
+from hlik.human.kinematics import human_model, qpos_trajectory
 from hlik.human.motion import ObjectMotion
 from hlik.problem.placement import Placement
 from hlik.recording.columns import Columns, Track, _entity, _index, _pose_columns
 from hlik.recording.style import _FILL, SIDE_COLORS, SPACING
-from hlik.robot.model import COLLISION_GROUP, SIDES
+from hlik.robot.model import COLLISION_GROUP, SIDES, Robot
 from hlik.trajectory import Trajectory
 from hlik.util.spatial import body_poses, xyzw
 
@@ -24,14 +25,34 @@ HOLD_DISTANCE = 0.03  # m
 HOLD_SMOOTHING = 0.3  # s
 FIXTURE_SPAN = 0.02  # m
 OBJECT_COLOR = (160, 160, 160, 120)
+SIDE_GAP = 0.3  # m between the figures' nearest body origins (a hand's geometry reaches 0.1-0.2 m past)
 ObjectBox = tuple[np.ndarray, np.ndarray, np.ndarray]  # known (T,) bool, half sizes (3,), centre (3,)
 
 
-def _display_placement(placement: Placement, layout: str) -> Placement:
+def _display_placement(traj: Trajectory, robot: Robot, layout: str) -> Placement:
+    """Where the robot base is drawn: the placement (overlay), or shifted along its x axis (the
+    human's right at the first frame) by :func:`side_spacing` (side)."""
+    placement = traj.placement
     if layout == "overlay":
         return placement
-    # beside the human, along the human's right at the first frame (the robot base x axis)
-    return Placement(placement.rotation, placement.translation + SPACING * placement.rotation[:, 0])
+    shift = side_spacing(traj, robot) * placement.rotation[:, 0]
+    return Placement(placement.rotation, placement.translation + shift)
+
+
+def side_spacing(traj: Trajectory, robot: Robot, samples: int = 24) -> float:
+    """How far the side layout shifts the robot along its base x axis, m: :data:`SPACING`, or more
+    where an arm reaches sideways, so that the human's bodies and the robot's bodies and TCPs stay
+    :data:`SIDE_GAP` apart along that axis in every one of ``samples`` frames spread over the take
+    (a scaled subject's hand had been drawn inside the robot's: ARMAR-6 on the demo, 16 cm)."""
+    rows = slice(0, traj.n_frames, max(1, -(-traj.n_frames // samples)))
+    human = human_model(traj.motion.height)
+    human_pos, _ = body_poses(human, qpos_trajectory(human, traj.motion.frames(rows)))
+    robot_pos, _ = body_poses(robot.model, traj.q[rows])
+    x = traj.placement.rotation[:, 0]
+    human_x = (human_pos[:, 1:] - traj.placement.translation) @ x  # (S, bodies) along the base x
+    robot_x = np.concatenate([robot_pos[:, 1:, 0], traj.tcp_pos[rows, :, 0]], axis=1)  # base frame
+    reach = np.max(human_x, axis=1) - np.min(robot_x, axis=1)  # (S,) the shift that makes them touch
+    return float(max(SPACING, np.nanmax(reach) + SIDE_GAP))
 
 
 def _model(

@@ -233,7 +233,7 @@ def _robot_scene(
     times = traj.times
     # The robot base as drawn (the side layout shifts it beside the human; overlay shows it where
     # the placement put it) and the rule that placed it.
-    shown = _display_placement(traj.placement, layout)
+    shown = _display_placement(traj, robot, layout)
     rec.log(
         "/world/placement",
         rr.Arrows3D(
