@@ -167,6 +167,38 @@ def test_the_side_layout_keeps_the_figures_apart(armar6):
     assert _display_placement(traj, armar6, "overlay") == traj.placement
 
 
+def test_a_subject_sunk_by_its_scale_is_drawn_on_the_floor(armar6, cut, tmp_path):
+    """Scaled about its shoulders to ARMAR-6's arms, the demo's subject sinks 0.7 m into the floor:
+    the side layout draws its world (bodies, hand paths, objects) lifted so that its lowest geometry
+    is on the floor; overlay does not move it, nor a recorded subject standing on the floor."""
+    import mujoco
+
+    import hlik
+    from hlik.recording.scene import human_lift
+
+    traj = hlik.run(hlik.RunSpec(robot="armar6", solver="jm", span=(2.0, 3.0))).trajectory
+    lift = human_lift(traj.motion, "side", samples=traj.n_frames)
+    assert 0.5 < lift < 1.0 and human_lift(traj.motion, "overlay") == 0.0
+    assert human_lift(cut, "side") == 0.0  # a KIT take at its own scale stands on the floor
+    model = human_model(traj.motion.height)
+    data = mujoco.MjData(model)
+    lowest = np.inf
+    for q in qpos_trajectory(model, traj.motion.frames(slice(None))):
+        data.qpos[:] = q
+        mujoco.mj_forward(model, data)  # contacts aside: the geoms' world boxes
+        for g in range(model.ngeom):
+            corners = np.array(np.meshgrid(*[[-1, 1]] * 3)).reshape(3, -1).T * model.geom_aabb[g, 3:]
+            world = (corners + model.geom_aabb[g, :3]) @ data.geom_xmat[g].reshape(3, 3).T + data.geom_xpos[g]
+            lowest = min(lowest, world[:, 2].min())
+    assert lowest + lift == pytest.approx(0.0, abs=1e-6)
+    rrd = tmp_path / "lifted.rrd"
+    write_recording(rrd, traj, armar6)
+    static = {c.entity_path: c.to_record_batch() for c in RrdReader(rrd).stream().to_chunks() if c.is_static}
+    for world in ("/world/human", "/world/objects", "/world/labels"):
+        translation = static[world].column("Transform3D:translation").to_pylist()[0][0]
+        assert translation == pytest.approx([0.0, 0.0, human_lift(traj.motion, "side")], abs=1e-6), world
+
+
 def _assert_in_view(cam, points):
     ahead = cam.target - cam.position
     ahead /= np.linalg.norm(ahead)

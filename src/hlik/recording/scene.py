@@ -11,7 +11,7 @@ import rerun as rr
 from scipy.ndimage import median_filter
 
 from hlik.human.kinematics import human_model, qpos_trajectory
-from hlik.human.motion import ObjectMotion
+from hlik.human.motion import HumanMotion, ObjectMotion
 from hlik.problem.placement import Placement
 from hlik.recording.columns import Columns, Track, _entity, _index, _pose_columns
 from hlik.recording.style import _FILL, SIDE_COLORS, SPACING
@@ -25,6 +25,7 @@ HOLD_DISTANCE = 0.03  # m
 HOLD_SMOOTHING = 0.3  # s
 FIXTURE_SPAN = 0.02  # m
 OBJECT_COLOR = (160, 160, 160, 120)
+FLOOR_SINK = 0.05  # m: a human drawn deeper in the floor than this is lifted onto it (side layout)
 SIDE_GAP = 0.3  # m between the figures' nearest body origins (a hand's geometry reaches 0.1-0.2 m past)
 ObjectBox = tuple[np.ndarray, np.ndarray, np.ndarray]  # known (T,) bool, half sizes (3,), centre (3,)
 
@@ -37,6 +38,29 @@ def _display_placement(traj: Trajectory, robot: Robot, layout: str) -> Placement
         return placement
     shift = side_spacing(traj, robot) * placement.rotation[:, 0]
     return Placement(placement.rotation, placement.translation + shift)
+
+
+def human_lift(motion: HumanMotion, layout: str, samples: int = 24) -> float:
+    """How far the side layout draws the human's world (its bodies, hand paths, keypoints and the
+    scene's objects) above where it is, m: so that a subject scaled about its shoulders
+    (``subject_scale = "auto"``), whose feet then sink below the floor (ARMAR-6: 0.7 m), is drawn
+    standing on it, its lowest geometry over ``samples`` frames at z = 0. 0 in the overlay layout,
+    where the robot stands in the human's world, and where nothing sinks :data:`FLOOR_SINK` deep."""
+    if layout == "overlay":
+        return 0.0
+    model = human_model(motion.height)
+    data = mujoco.MjData(model)
+    rows = slice(0, len(motion.times), max(1, -(-len(motion.times) // samples)))
+    lowest = np.inf
+    for qpos in qpos_trajectory(model, motion.frames(rows)):
+        data.qpos[:] = qpos
+        mujoco.mj_kinematics(model, data)
+        rot = data.geom_xmat.reshape(-1, 3, 3)
+        centre = data.geom_xpos[:, 2] + np.einsum("gj,gj->g", rot[:, 2], model.geom_aabb[:, :3])
+        lowest = min(
+            lowest, float(np.min(centre - np.einsum("gj,gj->g", np.abs(rot[:, 2]), model.geom_aabb[:, 3:])))
+        )
+    return -lowest if lowest < -FLOOR_SINK else 0.0
 
 
 def side_spacing(traj: Trajectory, robot: Robot, samples: int = 24) -> float:

@@ -11,7 +11,7 @@ import rerun.blueprint as rrb
 
 from hlik.human.kinematics import human_model, qpos_trajectory
 from hlik.recording.columns import _entity
-from hlik.recording.scene import _display_placement
+from hlik.recording.scene import _display_placement, human_lift
 from hlik.recording.style import CLUSTERS
 from hlik.robot.model import SIDES, Robot
 from hlik.trajectory import Trajectory
@@ -161,12 +161,13 @@ def scene_camera(traj: Trajectory, robot: Robot, layout: str = "side", samples: 
     shown = _display_placement(traj, robot, layout)
     robot_pos = _robot_points(traj, robot, rows) @ shown.rotation.T + shown.translation
     objects = [o.position[rows] for o in traj.motion.objects.values()]  # NaN where unseen: dropped
+    lift = np.array([0.0, 0.0, human_lift(traj.motion, layout)])  # the human's world as drawn
     points = np.concatenate(
         [
-            human_pos[:, 1:].reshape(-1, 3),
+            human_pos[:, 1:].reshape(-1, 3) + lift,
             robot_pos,
-            traj.placement.to_world(traj.targets.pos[rows]).reshape(-1, 3),
-            *objects,
+            traj.placement.to_world(traj.targets.pos[rows]).reshape(-1, 3) + lift,
+            *(o + lift for o in objects),
         ]
     )
     facing = traj.motion.root_rotation[:, :, 1].mean(axis=0)  # MMM root frame: y forward

@@ -28,6 +28,7 @@ from hlik.recording.scene import (
     _model,
     _object,
     _object_box,
+    human_lift,
 )
 from hlik.recording.style import (
     CHUNK_FRAMES,
@@ -196,6 +197,10 @@ def _scene(
 ) -> list[Track]:
     """Log the 3D scene's static parts; the tracks of its moving ones (human, objects, robot, frames)."""
     rec.log("/world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
+    lift = human_lift(traj.motion, layout)
+    for world in ("/world/human", "/world/objects", "/world/labels"):  # the human's world, on the floor
+        if lift:
+            rec.log(world, rr.Transform3D(translation=[0.0, 0.0, lift]), static=True)
     tracks, boxes = _human_scene(rec, traj, chunk_frames, fit)
     return tracks + _robot_scene(rec, traj, robot, layout, boxes)
 
