@@ -746,6 +746,17 @@ def test_the_controller_row_says_how_the_motion_ends():
     assert backward.stop_time == pytest.approx(0.25)  # a joint moving the other way stops as long
     unlimited = _checks(10, end_speed=np.array([0.5]), acceleration_limit=np.array([np.inf]))
     assert "(no acceleration limits given)" in controller_line(unlimited)
+    mixed = _checks(
+        10,
+        joint_names=("a", "b"),
+        acceleration=np.zeros((10, 2)),
+        torque=np.zeros((10, 2)),
+        end_speed=np.array([0.5, 1e-3]),
+        acceleration_limit=np.array([2.0, np.inf]),
+        jerk_limit=np.ones(2),
+        effort_limit=np.ones(2),
+    )
+    assert "(a joint without an acceleration limit among them)" in controller_line(mixed)
 
 
 def test_the_json_has_no_ratio_to_a_limit_not_given():

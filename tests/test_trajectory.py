@@ -103,9 +103,11 @@ def test_the_scenario_is_stored_and_files_without_it_still_read(tmp_path, demo):
     arrays["scenario"] = np.array("relatve")
     np.savez(tmp_path / "bad.npz", **arrays)
     with pytest.raises(
-        TrajectoryFormatError, match="bad.npz: scenario is .*relatve.*, expected pose or relative"
+        TrajectoryFormatError, match="bad.npz: scenario is 'relatve', expected pose or relative"
     ):
         load_trajectory(tmp_path / "bad.npz")
+    with pytest.raises(ValueError, match="scenario"):  # nor written: it would be refused on reading
+        replace(traj, scenario="Relative")
 
 
 @pytest.mark.parametrize("robot", ROBOTS)

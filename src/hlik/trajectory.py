@@ -71,6 +71,10 @@ class Trajectory:
     diagnostics: Diagnostics
     scenario: str | None = None
 
+    def __post_init__(self) -> None:
+        if self.scenario not in (None, *SCENARIOS):  # written, it would be refused on reading
+            raise ValueError(f"Trajectory.scenario must be None or one of {SCENARIOS}, got {self.scenario!r}")
+
     @property
     def n_frames(self) -> int:
         return len(self.times)
@@ -261,7 +265,9 @@ def _check_arrays(path: Path, a: dict[str, np.ndarray]) -> None:
     if "scenario" in a:
         _check_kind(path, "scenario", a["scenario"], "s")
         if a["scenario"].shape != () or str(a["scenario"]) not in ("", *SCENARIOS):
-            raise TrajectoryFormatError(f"{path}: scenario is {a['scenario']!r}, expected pose or relative")
+            raise TrajectoryFormatError(
+                f"{path}: scenario is {str(a['scenario'])!r}, expected pose or relative"
+            )
     _check_kind(path, "obj.names", a["obj.names"], "s")
     for i in range(len(a["obj.names"]) if a["obj.names"].ndim == 1 else 0):
         spec |= {f"obj.{i}.{k}": v for k, v in _OBJECT_SPEC.items()}

@@ -37,11 +37,12 @@ def controller_line(c) -> str:
     parts.append(f"a joint within 0.5° of a stop in {100 * j['share_at_stop']:.1f} % of frames")
     parts.append(f"base at z {j['base_height']:.3f} m, lowest point {j['lowest_point']:.3f} m")
     if j["end_speed"] > 0.0:
-        stop = (
-            "no acceleration limits given"
-            if j["stop_time"] is None
-            else (f"{j['stop_time']:.2f} s to stop at the acceleration limits")
-        )
+        if j["stop_time"] is not None:
+            stop = f"{j['stop_time']:.2f} s to stop at the acceleration limits"
+        elif j["acceleration_limits"]:
+            stop = "a joint without an acceleration limit among them"
+        else:
+            stop = "no acceleration limits given"
         parts.append(f"ends moving at up to {j['end_speed']:.2f} rad/s ({stop})")
     else:
         parts.append("ends at rest")

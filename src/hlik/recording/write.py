@@ -86,7 +86,9 @@ def write_recording(
     _check_arguments(layout, chunk_frames)
     curves = _score_curves(trajectory, metrics, evaluation)
     info = dict(info or {})
-    scenario = evaluation.scenario if evaluation is not None else info.get("scenario", "pose")
+    scenario = (
+        evaluation.scenario if evaluation is not None else info.get("scenario", trajectory.scenario or "pose")
+    )
     path = Path(path)
     _check_space(path, trajectory.n_frames)
     recording_id = f"{trajectory.motion.name}-{robot.name}-{trajectory.solver}"
