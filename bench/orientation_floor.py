@@ -87,18 +87,10 @@ def floor_pose(
 
     start = np.clip(q0, lo, hi)
     best, best_errs = start, np.full(2, np.inf)
-    finite = np.isfinite(lo) & np.isfinite(hi)
-    for s in [
-        start,
-        *(
-            np.where(
-                finite,
-                rng.uniform(np.where(finite, lo, 0), np.where(finite, hi, 0)),
-                rng.uniform(-np.pi, np.pi, len(q0)),
-            )
-            for _ in range(seeds)
-        ),
-    ]:
+    # a start range per joint: its stops; one turn beyond the stop it has; a turn about 0 without
+    draw_lo = np.where(np.isfinite(lo), lo, np.where(np.isfinite(hi), hi - 2 * np.pi, -np.pi))
+    draw_hi = np.where(np.isfinite(hi), hi, np.where(np.isfinite(lo), lo + 2 * np.pi, np.pi))
+    for s in [start, *(rng.uniform(draw_lo, draw_hi) for _ in range(seeds))]:
         res = minimize(
             objective,
             s,
