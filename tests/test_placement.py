@@ -119,6 +119,25 @@ def test_mapped_placement_stands_where_a_take_carried_away_starts(name, away, st
     assert np.degrees(found.yaw) == pytest.approx(np.degrees(clean.yaw), abs=2.0)
 
 
+@pytest.mark.parametrize(("away", "start"), [(0.6, 1.0), (0.3, 0.5), (0.45, 2.5)])
+def test_reach_placement_stands_where_a_take_carried_away_is(away, start):
+    """As the mapped rule above, for reach (ARMAR-III's default): the subject carried 2 m away for a
+    share of the Stir take. Scored on every frame, the robot stood 0.5 m forward of where the frames
+    left in place stand it, between the two places, turned 10-20 deg; now it stands for the frames
+    whose shoulders agree with the take's start (those of the ramps within the agreement's 0.4 m
+    included: up to one more grid step and yaw step away)."""
+    robot = load_robot("armar3")
+    motion = load_motion(kit_takes()[5]).crop(0.0, 5.0).resample(50.0)
+    t = motion.times - motion.times[0]
+    stop = start + away * 5.0
+    ramp = np.clip((t - start) / 0.5, 0, 1) - np.clip((t - stop + 0.5) / 0.5, 0, 1)
+    carried = replace(motion, root_position=motion.root_position + ramp[:, None] * [2.0, 0.0, 0.0])
+    clean = reach_placement(robot, forward_kinematics(scale_subject(motion, robot).frames(ramp == 0)))
+    found = reach_placement(robot, forward_kinematics(scale_subject(carried, robot)))
+    assert np.linalg.norm(found.translation[:2] - clean.translation[:2]) < 0.2
+    assert np.degrees(found.yaw) == pytest.approx(np.degrees(clean.yaw), abs=10.5)
+
+
 @pytest.mark.parametrize("name", ROBOTS)
 def test_shoulder_placement_matches_shoulder_midpoints_and_heading(name, takes):
     r = load_robot(name)

@@ -161,8 +161,15 @@ def reach_placement(
 
 
 def _target_frames(human: HumanKinematics, search: ReachSearch) -> np.ndarray:
-    """The frames of ``human`` whose hand poses the candidate grid is scored on (evenly spaced)."""
-    return np.unique(np.linspace(0, len(human.tcp_pos) - 1, search.n_targets).astype(int))
+    """The frames of ``human`` whose hand poses the candidate grid is scored on: evenly spaced
+    over the frames where the take is (:func:`_consensus` on the shoulders' midpoint, a tenth of
+    the take a window; all of a take that stays in one place, as each KIT take does). A stretch
+    carried away (field case unreachable_forward_2m) is no place to stand for: scored on with the
+    rest, it stood ARMAR-III 0.5 m forward of where the frames left in place stand it, between the
+    two places, its hands off from the first frame."""
+    where = human.shoulder[:, :, :2].mean(axis=1)  # (T, 2)
+    kept = np.flatnonzero(_consensus(where, max(1, len(where) // 10)))
+    return kept[np.unique(np.linspace(0, len(kept) - 1, search.n_targets).astype(int))]
 
 
 def _in_candidates(
@@ -295,13 +302,7 @@ def mapped_placement(robot: Robot, motion: HumanMotion, human: HumanKinematics |
     every = max(1, int(round(MAPPED_WINDOW * motion.rate)))
     for _ in range(2):  # the yaw of all frames (a window's alone is ill-conditioned), then the agreed's
         yaw, _ = _procrustes(a[keep].reshape(-1, 2), b[keep].reshape(-1, 2))
-        offset = np.mean(b - a @ yaw_rotation(yaw)[:2, :2].T, axis=1)  # (T, 2)
-        windows = [offset[k : k + every] for k in range(0, len(offset), every)]
-        proposals = [np.median(w, axis=0) for w in windows]
-        radius = _agreement(windows, proposals)
-        agree = [np.linalg.norm(offset - p, axis=-1) <= radius for p in proposals]
-        counts = np.array([np.count_nonzero(k) for k in agree])
-        keep = agree[int(np.flatnonzero(counts >= MAPPED_SHARE * counts.max())[0])]
+        keep = _consensus(np.mean(b - a @ yaw_rotation(yaw)[:2, :2].T, axis=1), every)  # (T, 2) offsets
     # then within the agreeing frames, hand by hand, as the plain fit did over all of them: hand
     # positions farther from the fit than twice the median distance (and 5 cm) left out
     agreed = np.repeat(keep, 2)
@@ -325,6 +326,19 @@ MAPPED_SHARE = 0.5
 # from the human's, drifted out of agreement between a take's first and last second, and the fit
 # over part of the Cut take turned it 7 deg (its m_hl 0.700 -> 0.679)
 MAPPED_RADIUS = 0.4
+
+
+def _consensus(points: np.ndarray, every: int) -> np.ndarray:
+    """(N,) the frames that agree on where the take is: each window of ``every`` frames of
+    ``points`` (N, 2), m, proposes its median, and the frames within :func:`_agreement` of the
+    earliest proposal that at least :data:`MAPPED_SHARE` as many frames agree with as with the most
+    agreed-with one (a consensus, as RANSAC's)."""
+    windows = [points[k : k + every] for k in range(0, len(points), every)]
+    proposals = [np.median(w, axis=0) for w in windows]
+    radius = _agreement(windows, proposals)
+    agree = [np.linalg.norm(points - p, axis=-1) <= radius for p in proposals]
+    counts = np.array([np.count_nonzero(k) for k in agree])
+    return agree[int(np.flatnonzero(counts >= MAPPED_SHARE * counts.max())[0])]
 
 
 def _agreement(windows: list[np.ndarray], proposals: list[np.ndarray]) -> float:
