@@ -37,6 +37,38 @@ def kit_takes(n: int | None = None) -> list[Path]:
     return takes
 
 
+# the columns a floor bench's table starts with: the run's and the floor's fORI median and p95, degrees
+FLOOR_HEAD = f"{'robot':10s} {'fORI':>6s} {'fORI95':>7s} {'floor':>6s} {'floor95':>8s}"
+
+
+def floor_arguments(parser: argparse.ArgumentParser, robots: str) -> None:
+    """The options of a floor bench: ``--robots`` (default ``robots``), ``--approach`` (a solver
+    and its criteria, ``qp+SYN+HJA_r``), ``--takes`` (8) and ``--seconds`` (5)."""
+    parser.add_argument("--robots", default=robots)
+    parser.add_argument("--approach", default="qp+SYN+HJA_r")
+    parser.add_argument("--takes", type=int, default=8)
+    parser.add_argument("--seconds", type=float, default=5.0)
+
+
+def solved_runs(robot: str, approach: str, takes: list[Path], seconds: float, time_scale: float = 1.0):
+    """``(take, hlik.pipeline.RunResult)`` for each take: ``seconds`` after its first second
+    retargeted to ``robot`` by ``approach`` (``solver+criterion+...``), as ``hlik run`` does."""
+    from hlik.pipeline import RunSpec
+    from hlik.pipeline import run as run_pipeline
+
+    solver, *criteria = approach.split("+")
+    for take in takes:
+        spec = RunSpec(
+            motion=take,
+            robot=robot,
+            solver=solver,
+            criteria=tuple(criteria),
+            span=(1.0, 1.0 + seconds),
+            time_scale=time_scale,
+        )
+        yield take, run_pipeline(spec)
+
+
 def kit_problems(robot: Any, takes: list[Path], seconds: float) -> list[Any]:
     """One problem per take: ``seconds`` after its first second at 100 Hz, the robot's placement,
     the criteria learned from the bundled demo (as every bench figure)."""

@@ -26,10 +26,8 @@ import numpy as np
 from scipy.optimize import minimize
 
 import hlik
-from common import kit_takes
+from common import FLOOR_HEAD, floor_arguments, kit_takes, solved_runs
 from hlik.criteria.functional import rotation_angle
-from hlik.pipeline import RunSpec
-from hlik.pipeline import run as run_pipeline
 from hlik.robot.model import SIDES
 
 STOP_MARGIN = np.radians(3.0)  # the solvers' default stop margin (QPSettings.stop_margin)
@@ -107,37 +105,24 @@ def floor_pose(
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--robots", default="armar3,armar6,dual_panda")
-    parser.add_argument("--approach", default="qp+SYN+HJA_r")
-    parser.add_argument("--takes", type=int, default=8)
-    parser.add_argument("--seconds", type=float, default=5.0)
+    floor_arguments(parser, "armar3,armar6,dual_panda")
     parser.add_argument("--every", type=int, default=10)
     parser.add_argument("--tol", type=float, default=0.01)
     parser.add_argument("--widen", default="")
     parser.add_argument("--seeds", type=int, default=0)
     args = parser.parse_args()
-    solver, *criteria = args.approach.split("+")
     takes = kit_takes(args.takes)
     print(
         f"{len(takes)} takes x {args.seconds:g} s, {args.approach}, every {args.every}th frame, "
         f"position within {args.tol * 100:g} cm; widened: {args.widen or 'none'}; "
         f"{args.seeds} random starts beside the solved frame"
     )
-    head = f"{'robot':10s} {'fORI':>6s} {'fORI95':>7s} {'floor':>6s} {'floor95':>8s}"
-    print(f"{head}  joints the floor leaves at a stop (share of frames)")
+    print(f"{FLOOR_HEAD}  joints the floor leaves at a stop (share of frames)")
     for name in args.robots.split(","):
         robot = hlik.load_robot(name)
         widen = np.array([np.radians(90.0) if j in args.widen.split(",") else 0.0 for j in robot.joint_names])
         solved, floor, stops, rng = [], [], Counter(), np.random.default_rng(0)
-        for take in takes:
-            spec = RunSpec(
-                motion=take,
-                robot=name,
-                solver=solver,
-                criteria=tuple(criteria),
-                span=(1.0, 1.0 + args.seconds),
-            )
-            res = run_pipeline(spec)
+        for _, res in solved_runs(name, args.approach, takes, args.seconds):
             traj, ev = res.trajectory, res.evaluation
             for t in range(0, traj.q.shape[0], args.every):
                 q, errs = floor_pose(

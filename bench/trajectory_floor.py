@@ -34,9 +34,7 @@ import osqp
 import scipy.sparse as sp
 
 import hlik
-from common import kit_takes
-from hlik.pipeline import RunSpec
-from hlik.pipeline import run as run_pipeline
+from common import FLOOR_HEAD, floor_arguments, kit_takes, solved_runs
 from hlik.robot.model import SIDES
 from hlik.util.spatial import rotation_angle, rotation_vector
 
@@ -160,37 +158,24 @@ def floor_motion(
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--robots", default="armar3,dual_panda")
-    parser.add_argument("--approach", default="qp+SYN+HJA_r")
-    parser.add_argument("--takes", type=int, default=8)
-    parser.add_argument("--seconds", type=float, default=5.0)
+    floor_arguments(parser, "armar3,dual_panda")
     parser.add_argument("--tol", type=float, default=0.003, help="TCP position bound, m per axis")
     parser.add_argument("--iterations", type=int, default=20)
     parser.add_argument(
         "--time-scale", type=float, default=1.0, help="play each take this many times as long"
     )
     args = parser.parse_args()
-    solver, *criteria = args.approach.split("+")
     takes = kit_takes(args.takes)
     print(
         f"{len(takes)} takes x {args.seconds:g} s, {args.approach}, position within {args.tol * 100:g} cm "
         f"per axis, {args.iterations} iterations, time scale {args.time_scale:g}"
     )
-    head = f"{'robot':10s} {'fORI':>6s} {'fORI95':>7s} {'floor':>6s} {'floor95':>8s}"
-    print(f"{head} {'fPOS cm':>8s} {'floor':>6s} {'>1cm %':>7s} {'floor':>6s}")
+    print(f"{FLOOR_HEAD} {'fPOS cm':>8s} {'floor':>6s} {'>1cm %':>7s} {'floor':>6s}")
     for name in args.robots.split(","):
         robot = hlik.load_robot(name)
         solved, floor, pos, run_pos = [], [], [], []
-        for take in takes:
-            spec = RunSpec(
-                motion=take,
-                robot=name,
-                solver=solver,
-                criteria=tuple(criteria),
-                span=(1.0, 1.0 + args.seconds),
-                time_scale=args.time_scale,
-            )
-            traj = run_pipeline(spec).trajectory
+        for take, res in solved_runs(name, args.approach, takes, args.seconds, args.time_scale):
+            traj = res.trajectory
             clip = Clip(robot, traj.targets.pos, traj.targets.rot)
             dt = float(np.median(np.diff(traj.times)))
             q = floor_motion(robot, traj.q, clip, dt, args.tol, args.iterations)
