@@ -217,9 +217,9 @@ def test_held_targets_leave_the_arms_still(name, takes):
     held = HandTargets(np.repeat(t.pos[:1], len(t.pos), 0), np.repeat(t.rot[:1], len(t.rot), 0))
     settings = JVSettings(criteria=("SYN", "HJA_r"))
     q, _ = solve_problem(solve, r, motion, held, placement, settings, learned=learn(r))
-    dq = np.diff(q[100:], axis=0)
-    reversing = (np.sign(dq[1:]) != np.sign(dq[:-1])) & (np.abs(dq[:-1]) > 1e-4)
-    assert np.max(np.abs(dq[1:][reversing]), initial=0.0) < 1e-3
+    # before: the largest step after the first second 3.2 mrad (ARMAR-6), 2.4 (ARMAR-III); 2-Panda's
+    # arms stood still before too
+    assert np.max(np.abs(np.diff(q[100:], axis=0))) < 1e-3
 
 
 def test_named_solver_and_settings():
