@@ -97,13 +97,12 @@ def floor_motion(
     eye_n = sp.identity(n, format="csc")
     a_mat = sp.vstack([sp.identity(t_n * n), sp.kron(d1, eye_n), sp.kron(d2, eye_n)]).tocsc()
     region = np.radians(10.0)
-    ori, dist = orientation_errors(clip, q)
+    ep, eo, jp, jo = clip.linearise(q)  # re-linearised only where a step is taken
     # a hand further off than tol (as a distance) or than the start left it costs PENALTY per m^2
     # in the merit a step must lower: the linearised position rows alone let the hands drift
-    reach = np.maximum(dist, np.sqrt(3.0) * tol)
-    cost = float(np.sum(ori**2))
+    reach = np.maximum(np.linalg.norm(ep, axis=-1), np.sqrt(3.0) * tol)
+    cost = float(np.sum(np.linalg.norm(eo, axis=-1) ** 2))
     for _ in range(iterations):
-        ep, eo, jp, jo = clip.linearise(q)
         # least squares in dq: sum over frames and hands of |eo + jo dq|^2 + 1e-4 |dq|^2
         blocks = [sum(jo[t, a].T @ jo[t, a] for a in range(2)) + 1e-4 * np.eye(n) for t in range(t_n)]
         p_mat = sp.block_diag(blocks, format="csc")
@@ -145,10 +144,12 @@ def floor_motion(
             region /= 2.0
             continue
         trial = q + res.x.reshape(t_n, n)
-        trial_ori, trial_dist = orientation_errors(clip, trial)
-        trial_cost = float(np.sum(trial_ori**2) + PENALTY * np.sum(np.maximum(trial_dist - reach, 0.0) ** 2))
+        at_trial = clip.linearise(trial)
+        beyond = np.maximum(np.linalg.norm(at_trial[0], axis=-1) - reach, 0.0)
+        trial_cost = float(np.sum(np.linalg.norm(at_trial[1], axis=-1) ** 2) + PENALTY * np.sum(beyond**2))
         if trial_cost < cost:
             q, cost, region = trial, trial_cost, min(region * 1.5, np.radians(30.0))
+            ep, eo, jp, jo = at_trial
         else:
             region /= 2.0
         if region < 1e-5:
@@ -180,14 +181,7 @@ def main() -> None:
             dt = float(np.median(np.diff(traj.times)))
             q = floor_motion(robot, traj.q, clip, dt, args.tol, args.iterations)
             ori, dist = orientation_errors(clip, q)
-            solved.append(
-                np.array(
-                    [
-                        [rotation_angle(traj.targets.rot[t, a], traj.tcp_rot[t, a]) for a in range(2)]
-                        for t in range(len(q))
-                    ]
-                )
-            )
+            solved.append(rotation_angle(traj.targets.rot, traj.tcp_rot))  # (T, 2)
             floor.append(ori)
             pos.append(dist)
             run_pos.append(np.linalg.norm(traj.tcp_pos - traj.targets.pos, axis=-1))

@@ -125,7 +125,7 @@ def test_reach_placement_stands_where_a_take_carried_away_is(away, start):
     share of the Stir take. Scored on every frame, the robot stood 0.5 m forward of where the frames
     left in place stand it, between the two places, turned 10-20 deg; now it stands for the frames
     whose shoulders agree with the take's start (those of the ramps within the agreement's 0.4 m
-    included: up to one more grid step and yaw step away)."""
+    included, which reach stands for too: 12-13 cm and up to one yaw step away)."""
     robot = load_robot("armar3")
     motion = load_motion(kit_takes()[5]).crop(0.0, 5.0).resample(50.0)
     t = motion.times - motion.times[0]

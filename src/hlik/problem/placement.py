@@ -127,7 +127,8 @@ class ReachSearch:
         step: Grid step of the base position, m.
         radius: Half-width of the square of base positions, m.
         yaw_step: Grid step of the base yaw, rad (the whole circle is searched).
-        n_targets: Frames of the motion whose hand poses are inverted (evenly spaced; all if fewer).
+        n_targets: Frames of the motion whose hand poses are inverted (evenly spaced over the
+            frames where the take is; all if fewer).
         filter_size: Width of the mean filter in grid cells (x, y and yaw).
     """
 
@@ -161,12 +162,10 @@ def reach_placement(
 
 
 def _target_frames(human: HumanKinematics, search: ReachSearch) -> np.ndarray:
-    """The frames of ``human`` whose hand poses the candidate grid is scored on: evenly spaced
-    over the frames where the take is (:func:`_consensus` on the shoulders' midpoint, a tenth of
-    the take a window; all of a take that stays in one place, as each KIT take does). A stretch
-    carried away (field case unreachable_forward_2m) is no place to stand for: scored on with the
-    rest, it stood ARMAR-III 0.5 m forward of where the frames left in place stand it, between the
-    two places, its hands off from the first frame."""
+    """(N,) indices of the frames of ``human`` whose hand poses the candidate grid is scored on:
+    ``search.n_targets`` evenly spaced over the frames where the take is (:func:`_consensus` on
+    the shoulders' midpoint, a tenth of the take a window; every frame of a take that stays in one
+    place). A stretch carried away is no place to stand for (README "Placement")."""
     where = human.shoulder[:, :, :2].mean(axis=1)  # (T, 2)
     kept = np.flatnonzero(_consensus(where, max(1, len(where) // 10)))
     return kept[np.unique(np.linspace(0, len(kept) - 1, search.n_targets).astype(int))]

@@ -67,8 +67,8 @@ class Memory:
     Attributes:
         jla: (n,) dH/dq, to tell the joints moving toward a limit (weights W).
         null: (n,) the null-space step taken, to tell a reversal.
-        null_bound: The current bound on the null-space step, rad (twice the last frame's at
-            each frame, at most ``max_null``).
+        null_bound: The current bound on the null-space step, rad (at each frame twice the last
+            frame's, within ``NULL_FLOOR * max_null`` and ``max_null``).
         constrained: A step of this frame met the rows only by the constrained step, so the later
             ones take it too (else the free and the constrained steps took turns, a two-cycle
             until the iteration cap in 13 % of ARMAR-III's frames beside its hip).
@@ -250,6 +250,7 @@ def criterion_terms(robot: Robot, settings: JVSettings, learned: Learned | None)
 
 ROTATIONAL = (fORI, fORI_off)  # the target terms in rad; the others are in m
 AT_BOUND = 1e-9  # rad: a joint this close to a bound of the frame's box is held there
+NULL_FLOOR = 1e-3  # the least carried null-space bound, a share of max_null
 
 
 def evaluate_targets(
@@ -431,11 +432,10 @@ def solve(
                 chan_dubey(q, robot.lower, robot.upper)[1], np.zeros(robot.dof), settings.max_null
             )
         # the null-space bound carries over, doubled: set back to max_null each frame, the null
-        # space ended each frame wherever its halvings stopped, a dither of up to 3 mrad a frame
-        # where the targets held still (ARMAR-6's clavicle reversed in 60 of 99 frames)
-        # kept above max_null / 1000: halved at every reversal within a frame and doubled once a
-        # frame, it fell to 1e-6 rad for whole takes (ARMAR-6, Close: m_hl,f 0.654 -> 0.632)
-        bound_now = min(settings.max_null, max(2.0 * memory.null_bound, settings.max_null / 1000.0))
+        # space ended each frame wherever its halvings stopped (a 3 mrad dither where the targets
+        # held still); floored, since halved per reversal and doubled per frame it could fall to
+        # 1e-6 rad for whole takes
+        bound_now = min(settings.max_null, max(2.0 * memory.null_bound, NULL_FLOOR * settings.max_null))
         memory = replace(memory, null_bound=bound_now, constrained=False, missed=False)
 
         taken = 0

@@ -203,7 +203,7 @@ class JVSettings(SolverSettings):
         k: Null-space gain; k < 0 descends (paper Sec. V, Chan & Dubey Eq. 10).
         max_null: Bound on the largest joint change of the null-space step, rad (paper:
             max|dH| <= 0.2); it halves whenever the null-space step reverses and doubles from
-            one frame to the next, up to this.
+            one frame to the next, up to this (and no lower than a thousandth of it).
         max_step: Bound on the largest joint change of a whole step, scaled down uniformly, rad
             (Simox CompositeDiffIK ``maxJointAngleStep``).
         damping: Least lambda of the damped least-norm solution (m, as the position rows set the
