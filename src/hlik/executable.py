@@ -19,17 +19,15 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import mujoco
 import numpy as np
 
 from hlik.criteria.angles import joint_difference
+from hlik.robot.dynamics import inverse_dynamics
 from hlik.robot.floor import lowest_points
 from hlik.robot.model import Robot
 from hlik.trajectory import Trajectory
 
 AT_STOP = math.radians(0.5)  # a joint this close to a stop "sits on it"
-_D = mujoco.mjtDisableBit
-_OFF = _D.mjDSBL_CONSTRAINT | _D.mjDSBL_SPRING | _D.mjDSBL_DAMPER  # contacts, limits; passive forces
 BELOW_FLOOR = 0.01  # m: a lowest point this far under the floor is reported
 
 
@@ -214,24 +212,3 @@ def controller_checks(traj: Trajectory, robot: Robot) -> ControllerChecks:
         jerk_limit=robot.jerk_limit,
         effort_limit=robot.effort_limit,
     )
-
-
-def inverse_model(model: mujoco.MjModel) -> mujoco.MjModel:
-    """A copy of ``model`` for ``mj_inverse`` as this module uses it: contacts, joint limits and
-    passive forces off."""
-    copy = model.__copy__()
-    copy.opt.disableflags |= _OFF
-    return copy
-
-
-def inverse_dynamics(robot: Robot, q: np.ndarray, qvel: np.ndarray, qacc: np.ndarray) -> np.ndarray:
-    """(T, n) joint torques (N m) of ``q``, ``qvel``, ``qacc`` (T, n) each, by ``mujoco.mj_inverse``
-    with contacts and constraints off."""
-    model = inverse_model(robot.model)
-    data = mujoco.MjData(model)
-    out = np.empty_like(q)
-    for k in range(len(q)):
-        data.qpos[:], data.qvel[:], data.qacc[:] = q[k], qvel[k], qacc[k]
-        mujoco.mj_inverse(model, data)
-        out[k] = data.qfrc_inverse
-    return out

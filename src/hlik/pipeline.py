@@ -1,7 +1,7 @@
 """One retargeting run, from a motion file to its scores: the pipeline that ``hlik run``, the
 study's cells and ``bench/quality.py`` share.
 
-    read (resample, crop) -> scale -> learn -> place -> solve -> evaluate
+    read (resample, crop) -> scale -> learn -> place -> solve (-> the whole take) -> evaluate
 
 :class:`RunSpec` says what to run and :func:`run` runs it into a :class:`RunResult`. The spec is
 checked whole (:meth:`RunSpec.check`) before anything is read, so a bad setting costs no solve.
@@ -178,7 +178,12 @@ def run(
     step = (lambda k: progress(stage, k + 1, motion.n_frames)) if progress else None
     _say(progress, stage, 0, motion.n_frames)
     wall, cpu = time.perf_counter(), time.process_time()
-    traj = retarget(motion, robot, get_solver(spec.solver, settings, step, limits), placement, learned)
+    solver = get_solver(spec.solver, settings, step, limits)
+    if spec.whole_take:
+        from hlik.solvers.whole_take import WholeTake
+
+        solver = WholeTake(solver, announce=lambda stage: _say(progress, stage))
+    traj = retarget(motion, robot, solver, placement, learned)
     traj = replace(traj, scenario=scenario)  # what hlik evaluate scores it by, unless told
     wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
     _say(progress, "evaluating the criteria")

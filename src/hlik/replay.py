@@ -22,7 +22,8 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from hlik.executable import inverse_model, joint_velocity
+from hlik.executable import joint_velocity
+from hlik.robot.dynamics import inverse_model
 from hlik.robot.model import SIDES, Robot
 from hlik.trajectory import Trajectory
 

@@ -59,6 +59,8 @@ class RunSpec:
         metric: Metric file with the unified metric's weights and x0 (None: Table III).
         gradients: SLSQP's gradients, ``analytic`` or ``fd`` (finite differences, as the paper).
         settings: Solver settings fields to override, name -> value (``bench --set``).
+        whole_take: Optimise the solver's result over the whole take at once
+            (:mod:`hlik.solvers.whole_take`; the ``pose`` scenario).
     """
 
     motion: Path | None = None
@@ -76,6 +78,7 @@ class RunSpec:
     metric: Path | None = None
     gradients: str = "analytic"
     settings: Mapping[str, object] = field(default_factory=lambda: MappingProxyType({}))
+    whole_take: bool = False
 
     @property
     def motion_path(self) -> Path:
@@ -144,6 +147,11 @@ class RunSpec:
             takers = ", ".join(n for n, s in SPECS.items() if s.takes_criteria)
             raise SettingsError(
                 f"{self.solver} maps joints and cannot add criteria; choose --solver {takers}"
+            )
+        if self.whole_take and (self.scenario or stack.scenario) != "pose":
+            raise SettingsError(
+                "--whole-take optimises both hands' poses (scenario pose); "
+                "the relative scenario is retargeted frame by frame only"
             )
         if self.metric is not None:
             from hlik.criteria.unified import load_metric  # NumPy: after the quick checks

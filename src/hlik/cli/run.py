@@ -129,6 +129,17 @@ TimeScaleOpt = Annotated[
         "robot whose speed or acceleration limits cannot follow the person (0.1 to 10).",
     ),
 ]
+WholeTakeOpt = Annotated[
+    bool,
+    typer.Option(
+        "--whole-take",
+        help="Then optimise the solver's motion over the whole take at once (hlik.solvers.whole_take): "
+        "the hands turned toward their targets where the frame-by-frame solver left them off, within "
+        "every limit; tens of ms a frame. Scenario pose only.",
+        metavar=FLAG,
+        show_default=False,
+    ),
+]
 
 
 def _span(text: str | None) -> tuple[float, float] | None:
@@ -167,6 +178,7 @@ def run(
     span: SpanOpt = None,
     time_scale: TimeScaleOpt = 1.0,
     export: ExportOpt = None,
+    whole_take: WholeTakeOpt = False,
 ) -> None:
     """Retarget a motion to a robot; write a Rerun recording and the trajectory (.npz) beside it."""
     from hlik.recording.layout import LAYOUTS
@@ -190,6 +202,7 @@ def run(
             gradients=gradients,
             span=_span(span),
             time_scale=time_scale,
+            whole_take=whole_take,
         )
         if layout not in LAYOUTS:
             raise HlikError(f"unknown layout {layout!r}; choose one of: {', '.join(LAYOUTS)}")
@@ -377,6 +390,7 @@ def _tag(spec: RunSpec, robot: RobotDefaults, layout: str, corpus_source: str) -
         layout=layout,
         span=spec.span,
         time_scale=spec.time_scale,
+        whole_take=spec.whole_take,
         corpus=spec.corpus if corpus_source in ("--corpus", "HLIK_CORPUS") else None,
     )
 
@@ -398,6 +412,7 @@ def _run_tag(
     corpus: Path | None,
     span: tuple[float, float] | None = None,
     time_scale: float = 1.0,
+    whole_take: bool = False,
 ) -> str:
     """The part of the default output name after motion and robot: every choice that changes the
     result, defaults left out, e.g. ``slsqp_SYN_fd``, ``qp_my_stack_at-0.4_1.2_90``: the
@@ -407,7 +422,7 @@ def _run_tag(
         named: Sequence[str] = ()
     else:
         named = criteria or (("nocriteria",) if stack_criteria else ())
-    parts = [solver, *(() if default_stack else (stack,)), *named]
+    parts = [solver + ("-whole" if whole_take else ""), *(() if default_stack else (stack,)), *named]
     parts += ["fd"] if gradients == "fd" else []
     parts += [f"at-{placement}"] if placement is not None else []
     parts += [f"scale-{scale}"] if scale is not None else []

@@ -100,7 +100,7 @@ def run_summary(traj, motion, solve_time: float, ev, solver_note: str = "") -> T
     table.add_row(
         "solver",
         f"{d.n_failed} failed, {d.n_unconverged} unconverged "
-        f"({'roundoff' if traj.solver == 'slsqp' else 'iteration cap'}) of "
+        f"({'roundoff' if solver_spec(traj.solver).name == 'slsqp' else 'iteration cap'}) of "
         f"{traj.n_frames} frames; median {np.median(d.iterations):.0f} iterations/frame"
         + (f"; {solver_note}" if solver_note else ""),
     )

@@ -76,6 +76,8 @@ SPECS: Mapping[str, SolverSpec] = MappingProxyType(
     }
 )
 SOLVER_NAMES = tuple(SPECS)
+# a solver's name with this after it: its result optimised over the whole take (hlik.solvers.whole_take)
+WHOLE_TAKE = "+whole"
 
 
 def check_solver(name: str) -> SolverSpec:
@@ -92,9 +94,12 @@ def check_solver(name: str) -> SolverSpec:
 
 def solver_spec(name: str) -> SolverSpec:
     """The :class:`SolverSpec` of solver ``name``; a solver hlik does not know by name (a user's
-    function, a mink stack) is one that tracks the targets and takes no criteria of hlik's.
+    function, a mink stack) is one that tracks the targets and takes no criteria of hlik's. A name
+    ending in :data:`WHOLE_TAKE` (a solver's result optimised over the whole take,
+    :mod:`hlik.solvers.whole_take`) is its solver's.
 
     Use it for what a solver can do, not its name."""
+    name = name.removesuffix(WHOLE_TAKE)
     return SPECS.get(name) or SolverSpec(name, "", None, takes_criteria=False)
 
 

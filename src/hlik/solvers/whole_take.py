@@ -1,0 +1,429 @@
+"""The whole take at once: a frame-by-frame solution improved over every frame together.
+
+A frame-by-frame solver (JV, the QP, SLSQP) sees its own frame and, with its look-ahead, a path
+fitted in joint space; where a turn of the hand needs the joints to start early, it lags. Here the
+solved motion q (T, n) is the start of a sequential convex programme over all T frames at once.
+Each iteration linearises, at the current motion, both TCP poses (``mj_jacSite``), the joint
+torques (``mujoco.mjd_inverseFD`` on the controller check's inverse dynamics) and the collision
+pairs closer than ``collision_detect`` (:func:`hlik.robot.collision.near_pairs`), and solves one
+sparse QP (Clarabel, through qpsolvers) for every frame's step dq:
+
+    min  sum_t sum_hands |e_o + J_o dq_t|^2 + pull |q_t + dq_t - q_run,t|^2
+    s.t. the stops less ``stop_margin``; |dq_t| <= the trust region;
+         speed, acceleration (and jerk) limits as the controller check differences them
+         (:mod:`hlik.executable`: at rest before the first frame), times ``headroom``;
+         each hand within ``position_band`` m per axis of its target (or as far as it is);
+         torques within ``torque_fraction`` of the efforts (or as far over as they are);
+         each near pair at least ``collision_margin`` apart (or as close as it is),
+
+with e_o the rotation vector of R R*^T (rad). ``pull`` keeps the posture the criteria shaped where
+the hands need nothing else (the criteria themselves are not re-evaluated). A step is kept only if
+the merit (orientation error, pull, and :data:`PENALTY` per m^2 a hand ends further off than
+sqrt(3) ``position_band`` or than the run left it) falls, no torque rises over its effort and no
+pair comes within half the margin; else the trust region halves. The linear rows are kept to
+Clarabel's tolerance (1e-8), so the result keeps the limits the controller check applies.
+
+The figures behind the defaults are in the README ("The whole take at once").
+"""
+
+from __future__ import annotations
+
+import math
+import time
+import warnings
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
+
+import mujoco
+import numpy as np
+import qpsolvers
+import scipy.sparse as sp
+
+from hlik.problem.problem import Problem
+from hlik.robot.collision import CollisionPairs, collision_pairs, near_pairs
+from hlik.robot.dynamics import inverse_model
+from hlik.robot.model import SIDES, Robot
+from hlik.solvers.base import Solver, SolverResult
+from hlik.solvers.catalog import WHOLE_TAKE
+from hlik.solvers.settings import STOP_MARGIN
+from hlik.util.spatial import rotation_vector
+
+# rad^2 per m^2 in the merit: a hand 1 mm beyond its band costs as much as 0.3 rad off in one frame
+PENALTY = 1e5
+REACH_ROOM = 1.5  # the merit's sphere over the rows' box corner
+_EPS = 1e-6  # rad^2: damping of every step, so that the QP is strictly convex
+
+
+@dataclass(frozen=True)
+class WholeTakeSettings:
+    """How the whole take is optimised; SI units.
+
+    Attributes:
+        iterations: Linearisations (QP solves) at most.
+        position_band: Each hand within this of its target per axis, m (or as far as the run left it).
+        orientation_band: A hand turned less than this from its target costs nothing, rad; beyond
+            it, the square of the angle beyond.
+        smoothness: Weight of the squared second differences of the change made to the run
+            (rad^2 per rad^2), so that the change adds no jerk.
+        pull: Weight per rad^2 of each joint's distance to the frame-by-frame solution, against the
+            hands' orientation errors (rad^2).
+        trust_region: The first iteration's largest joint step, rad (grown 1.5x on a kept step to
+            ``max_trust_region``, halved on a rejected one).
+        max_trust_region: Largest joint step of an iteration, rad.
+        stop_margin: Kept from every position stop, rad.
+        headroom: Share of the speed, acceleration and jerk limits the rows allow.
+        torque_fraction: Share of the effort limits the linearised torque rows allow.
+        collision_margin: Least distance between collision geoms, m.
+        collision_detect: Pairs closer than this at the linearisation get a row, m.
+        min_trust_region: Stop once the trust region is below this, rad.
+        tolerance: Stop once a kept step lowers the merit by less than this share of it.
+    """
+
+    iterations: int = 20
+    position_band: float = 0.003
+    orientation_band: float = math.radians(3.0)
+    pull: float = 0.1
+    smoothness: float = 1e4
+    trust_region: float = math.radians(3.0)
+    max_trust_region: float = math.radians(30.0)
+    stop_margin: float = STOP_MARGIN
+    headroom: float = 0.99
+    torque_fraction: float = 0.9
+    collision_margin: float = 0.01
+    collision_detect: float = 0.05
+    min_trust_region: float = 1e-4
+    tolerance: float = 1e-4
+
+
+@dataclass(frozen=True, eq=False)
+class Linearisation:
+    """A motion's TCP errors, torques and near pairs with their derivatives.
+
+    Attributes:
+        position: (T, 2, 3) TCP position minus target, m, base frame (left, right).
+        orientation: (T, 2, 3) rotation vectors of R R*^T, rad.
+        position_jacobian, orientation_jacobian: (T, 2, 3, n).
+        torque: (T, n) joint torques, N m (the controller check's, :mod:`hlik.executable`).
+        torque_jacobian: (T, 3, n, n) d tau_t / d q_{t-1}, d q_t, d q_{t+1}.
+        pairs: Per frame, the near pairs' distances (k,), m, and gradients (k, n).
+    """
+
+    position: np.ndarray
+    orientation: np.ndarray
+    position_jacobian: np.ndarray
+    orientation_jacobian: np.ndarray
+    torque: np.ndarray
+    torque_jacobian: np.ndarray
+    pairs: list[tuple[np.ndarray, np.ndarray]] = field(repr=False)
+
+    @property
+    def closest(self) -> float:
+        """The least near-pair distance over the take, m (inf: none near)."""
+        return min((float(d.min()) for d, _ in self.pairs if len(d)), default=math.inf)
+
+
+class Take:
+    """A robot and its TCP targets over a take: what each iteration linearises.
+
+    ``pos`` (T, 2, 3), m, and ``rot`` (T, 2, 3, 3): the targets in the base frame; ``dt``: the
+    frame period, s.
+    """
+
+    def __init__(self, robot: Robot, pos: np.ndarray, rot: np.ndarray, dt: float, detect: float) -> None:
+        self.robot, self.pos, self.rot, self.dt, self.detect = robot, pos, rot, dt, detect
+        self.data = mujoco.MjData(robot.model)
+        self.inverse = inverse_model(robot.model)
+        self.inverse_data = mujoco.MjData(self.inverse)
+        self.sites = [robot.site_id(side, "tcp") for side in SIDES]
+        self.pairs: CollisionPairs = collision_pairs(robot)
+
+    def linearise(self, q: np.ndarray) -> Linearisation:
+        """The :class:`Linearisation` of the motion ``q`` (T, n)."""
+        model, data = self.robot.model, self.data
+        t_n, n = q.shape
+        ep, eo = np.zeros((t_n, 2, 3)), np.zeros((t_n, 2, 3))
+        jp, jo = np.zeros((t_n, 2, 3, model.nv)), np.zeros((t_n, 2, 3, model.nv))
+        pairs = []
+        for t in range(t_n):
+            data.qpos[:] = q[t]  # the models' qpos are the joints, in order (robots/README.md)
+            mujoco.mj_kinematics(model, data)
+            mujoco.mj_comPos(model, data)
+            for a, site in enumerate(self.sites):
+                mujoco.mj_jacSite(model, data, jp[t, a], jo[t, a], site)
+                ep[t, a] = data.site_xpos[site] - self.pos[t, a]
+                eo[t, a] = rotation_vector(data.site_xmat[site].reshape(3, 3) @ self.rot[t, a].T)
+            _, dist, grad = near_pairs(self.robot, data, self.pairs, self.detect)
+            pairs.append((dist, grad[:, :n]))
+        torque, tjac = self.torques(q)
+        return Linearisation(ep, eo, jp[..., :n], jo[..., :n], torque, tjac, pairs)
+
+    def torques(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(T, n) the torques of ``q`` as :func:`hlik.executable.controller_checks` computes them
+        (velocity into frame t ``v_t = (q_t - q_t-1) / dt``, 0 into the first; acceleration
+        ``(v_t+1 - v_t) / dt``, 0 at the last; torque at the central velocity), and (T, 3, n, n)
+        their derivatives by q_t-1, q_t and q_t+1."""
+        model, data, dt = self.inverse, self.inverse_data, self.dt
+        t_n, n = q.shape
+        before = np.vstack([q[:1], q[:-1]])  # q_t-1; the first frame's is itself (at rest)
+        after = np.vstack([q[1:], q[-1:]])  # q_t+1; the last frame's is itself (no acceleration)
+        qvel = (after - before) / (2.0 * dt)
+        qvel[-1] = (q[-1] - before[-1]) / dt
+        qacc = (after - 2.0 * q + before) / (dt * dt)
+        qacc[-1] = 0.0
+        torque, jac = np.empty((t_n, n)), np.zeros((t_n, 3, n, n))
+        dfdq, dfdv, dfda = (np.empty((model.nv, model.nv)) for _ in range(3))
+        for t in range(t_n):
+            data.qpos[:], data.qvel[:], data.qacc[:] = q[t], qvel[t], qacc[t]
+            mujoco.mj_inverse(model, data)
+            torque[t] = data.qfrc_inverse[:n]
+            mujoco.mjd_inverseFD(model, data, 1e-6, 0, dfdq, dfdv, dfda, None, None, None, None)
+            dq, dv, da = dfdq.T[:n, :n], dfdv.T[:n, :n], dfda.T[:n, :n]  # MuJoCo's are transposed
+            if t < t_n - 1:
+                jac[t, 0] = da / dt**2 - dv / (2.0 * dt)
+                jac[t, 1] = dq - 2.0 * da / dt**2
+                jac[t, 2] = da / dt**2 + dv / (2.0 * dt)
+            else:
+                jac[t, 0], jac[t, 1] = -dv / dt, dq + dv / dt
+        if t_n > 1:  # the first frame's q_t-1 is q_0 itself
+            jac[0, 1] += jac[0, 0]
+            jac[0, 0] = 0.0
+        return torque, jac
+
+
+@dataclass(frozen=True, eq=False)
+class Refinement:
+    """What :func:`refine` did.
+
+    Attributes:
+        q: (T, n) the refined motion, rad.
+        iterations: QPs solved; ``accepted`` the steps kept.
+        merit: The merit before and after.
+        seconds: Wall time, s.
+    """
+
+    q: np.ndarray
+    iterations: int
+    accepted: int
+    merit: tuple[float, float]
+    seconds: float
+
+
+def difference_rows(t_n: int, order: int) -> sp.csr_matrix:
+    """(T - 1, T) the ``order``-th differences of a take at rest before its first frame, as the
+    controller check takes them: speed (1) into frames 1..T-1, acceleration (2) of frames 0..T-2,
+    jerk (3) into frames 1..T-2 (its first row 0 where T < 3)."""
+    first = sp.diags([-1.0, 1.0], [0, 1], shape=(t_n - 1, t_n), format="csr")
+    if order == 1:
+        return first
+    # velocities into frames 0..T-1 (the first 0), then their differences
+    vel = sp.vstack([sp.csr_matrix((1, t_n)), first]).tocsr()
+    acc = (sp.diags([-1.0, 1.0], [0, 1], shape=(t_n - 1, t_n)) @ vel).tocsr()
+    if order == 2:
+        return acc
+    acc_full = sp.vstack([acc, sp.csr_matrix((1, t_n))]).tocsr()  # 0 at the last frame
+    jerk = sp.diags([-1.0, 1.0], [0, 1], shape=(t_n - 1, t_n)) @ acc_full
+    return sp.vstack([sp.csr_matrix((1, t_n)), jerk[:-1]]).tocsr() if t_n > 2 else jerk.tocsr()
+
+
+def refine(problem: Problem, q: np.ndarray, settings: WholeTakeSettings | None = None) -> Refinement:
+    """The motion ``q`` (T, n) of ``problem`` improved over the whole take (module docstring).
+
+    Returns ``q`` itself (no step kept) where no step lowers the merit within the limits.
+    """
+    s = settings or WholeTakeSettings()
+    start = time.perf_counter()
+    robot = problem.robot
+    t_n, n = q.shape
+    targets = problem.targets
+    take = Take(robot, targets.pos, targets.rot, problem.dt, s.collision_detect)
+    if t_n < 2:
+        return Refinement(q.copy(), 0, 0, (0.0, 0.0), time.perf_counter() - start)
+    lo = np.where(np.isinf(robot.lower), -np.inf, robot.lower + s.stop_margin)
+    hi = np.where(np.isinf(robot.upper), np.inf, robot.upper - s.stop_margin)
+    run = q.copy()
+    eye = sp.identity(n, format="csr")
+    rates = [(1, robot.velocity_limit * problem.dt), (2, robot.acceleration_limit * problem.dt**2)]
+    rates.append((3, robot.jerk_limit * problem.dt**3))
+    diffs = [
+        (sp.kron(difference_rows(t_n, k), eye).tocsr(), np.tile(limit * s.headroom, t_n - 1))
+        for k, limit in rates
+        if np.any(np.isfinite(limit))
+    ]
+    effort = robot.effort_limit
+    limited = np.flatnonzero(np.isfinite(effort))
+    lin = take.linearise(q)
+    # each axis of each hand within the band or as far off as the run left it; the merit's sphere
+    # holds that box with room for the curvature the rows do not see (a step of the trust region
+    # on every joint bends a hand's path by millimetres)
+    band = np.maximum(np.abs(lin.position), s.position_band)  # (T, 2, 3)
+    reach = REACH_ROOM * np.linalg.norm(band, axis=-1)
+    cost = _merit(lin, q, run, reach, s)
+    first = cost
+    region, iterations, accepted = s.trust_region, 0, 0
+    if cost == 0.0:  # every hand within its bands already
+        region = 0.0
+    while iterations < s.iterations and region >= s.min_trust_region:
+        iterations += 1
+        step = _step(lin, q, run, lo, hi, diffs, effort, limited, band, region, s)
+        if step is None:
+            region /= 2.0
+            continue
+        trial = q + step
+        at_trial = take.linearise(trial)
+        over = np.max(np.abs(at_trial.torque[:, limited]) / effort[limited], initial=0.0)
+        now = np.max(np.abs(lin.torque[:, limited]) / effort[limited], initial=0.0)
+        trial_cost = _merit(at_trial, trial, run, reach, s)
+        safe = over <= max(1.0, now) and at_trial.closest >= min(0.5 * s.collision_margin, lin.closest)
+        if safe and trial_cost < cost:
+            settled = cost - trial_cost < s.tolerance * cost
+            q, lin, cost, accepted = trial, at_trial, trial_cost, accepted + 1
+            region = min(1.5 * region, s.max_trust_region)
+            if settled:
+                break
+        else:
+            region /= 2.0
+    return Refinement(q, iterations, accepted, (first, cost), time.perf_counter() - start)
+
+
+def _merit(
+    lin: Linearisation, q: np.ndarray, run: np.ndarray, reach: np.ndarray, s: WholeTakeSettings
+) -> float:
+    beyond = np.maximum(np.linalg.norm(lin.position, axis=-1) - reach, 0.0)
+    turned = np.maximum(np.linalg.norm(lin.orientation, axis=-1) - s.orientation_band, 0.0)
+    change = q - run
+    return float(
+        np.sum(turned**2)
+        + s.pull * np.sum(change**2)
+        + s.smoothness * np.sum(np.diff(change, 2, axis=0) ** 2)
+        + PENALTY * np.sum(beyond**2)
+    )
+
+
+def _step(
+    lin: Linearisation,
+    q: np.ndarray,
+    run: np.ndarray,
+    lo: np.ndarray,
+    hi: np.ndarray,
+    diffs: list[tuple[sp.csr_matrix, np.ndarray]],
+    effort: np.ndarray,
+    limited: np.ndarray,
+    band: np.ndarray,
+    region: float,
+    s: WholeTakeSettings,
+) -> np.ndarray | None:
+    """(T, n) the QP's step from ``q``, or None where it has no solution."""
+    t_n, n = q.shape
+    jo, jp = lin.orientation_jacobian, lin.position_jacobian
+    # each hand turned beyond the band: the least squares of its rotation vector shortened by the band
+    angle = np.linalg.norm(lin.orientation, axis=-1, keepdims=True)  # (T, 2, 1)
+    weight = (angle > s.orientation_band).astype(float)
+    residual = lin.orientation * (1.0 - s.orientation_band / np.maximum(angle, 1e-12)) * weight
+    jw = jo * weight[..., None]
+    hessian = np.einsum("tacn,tacm->tnm", jw, jw) + (s.pull + _EPS) * np.eye(n)
+    gradient = np.einsum("tacn,tac->tn", jw, residual) + s.pull * (q - run)
+    smooth = sp.kron(sp.diags([1.0, -2.0, 1.0], [0, 1, 2], shape=(t_n - 2, t_n)), sp.identity(n))
+    smooth_h = s.smoothness * (smooth.T @ smooth)
+    rows, upper = [], []
+
+    def keep(a: sp.spmatrix, value: np.ndarray, lower: np.ndarray, high: np.ndarray) -> None:
+        # lower <= a @ (x + dq) <= high with a @ x = value; a bound the start breaks moves to it
+        rows.extend([a, -a])
+        upper.extend([np.maximum(high - value, 0.0), np.maximum(value - lower, 0.0)])
+
+    flat = q.reshape(-1)
+    for a, bound in diffs:
+        finite = np.isfinite(bound)
+        keep(a[finite], a[finite] @ flat, -bound[finite], bound[finite])
+    hands = sp.block_diag(list(jp.reshape(t_n, 6, n)), format="csr")
+    keep(hands, lin.position.reshape(-1), -band.reshape(-1), band.reshape(-1))
+    if len(limited):
+        allowed = np.tile(s.torque_fraction * effort[limited], t_n)
+        torque_rows = _torque_rows(lin.torque_jacobian[:, :, limited], t_n, n)
+        keep(torque_rows, lin.torque[:, limited].reshape(-1), -allowed, allowed)
+    near = [(t, d, g) for t, (d, g) in enumerate(lin.pairs) if len(d)]
+    if near:
+        frames = np.concatenate([np.full(len(d), t) for t, d, _ in near])
+        placed = _place_rows(sp.block_diag([g for _, _, g in near], format="csr"), frames, t_n, n)
+        dist = np.concatenate([d for _, d, _ in near])
+        rows.append(-placed)
+        upper.append(np.maximum(dist - np.minimum(s.collision_margin, dist), 0.0))
+    g_mat = sp.vstack(rows).tocsc()
+    h = np.concatenate(upper)
+    box_lo = np.maximum(np.tile(lo, t_n) - flat, -region)
+    box_hi = np.minimum(np.tile(hi, t_n) - flat, region)
+    box_lo, box_hi = np.minimum(box_lo, 0.0), np.maximum(box_hi, 0.0)
+    with warnings.catch_warnings(record=True) as said:  # Clarabel short of its tolerances
+        warnings.simplefilter("always")
+        x = qpsolvers.solve_qp(
+            (sp.block_diag(list(hessian)) + smooth_h).tocsc(),
+            gradient.reshape(-1) + smooth_h @ (q - run).reshape(-1),
+            g_mat,
+            h,
+            lb=box_lo,
+            ub=box_hi,
+            solver="clarabel",
+        )
+    if said or x is None or not np.all(np.isfinite(x)):  # the rows kept only roughly: no step
+        return None
+    return np.clip(x, box_lo, box_hi).reshape(t_n, n)
+
+
+def _place_rows(blocks: sp.csr_matrix, frames: np.ndarray, t_n: int, n: int) -> sp.csr_matrix:
+    """(k, T n) the rows ``blocks`` (k, k n) of block-diagonal (1, n) gradients moved to their
+    frames' columns."""
+    coo = blocks.tocoo()
+    cols = frames[coo.row] * n + coo.col % n
+    return sp.csr_matrix((coo.data, (coo.row, cols)), shape=(blocks.shape[0], t_n * n))
+
+
+def _torque_rows(jac: np.ndarray, t_n: int, n: int) -> sp.csr_matrix:
+    """(T k, T n) the torque rows from (T, 3, k, n) derivatives by q_t-1, q_t, q_t+1."""
+    k = jac.shape[2]
+    t = np.arange(t_n)[:, None, None, None]
+    neighbour = np.clip(t + np.arange(-1, 2)[None, :, None, None], 0, t_n - 1)
+    row = np.broadcast_to(t * k + np.arange(k)[None, None, :, None], jac.shape)
+    col = np.broadcast_to(neighbour * n + np.arange(n)[None, None, None, :], jac.shape)
+    return sp.csr_matrix((jac.reshape(-1), (row.reshape(-1), col.reshape(-1))), shape=(t_n * k, t_n * n))
+
+
+@dataclass(frozen=True)
+class WholeTake:
+    """A solver whose frame-by-frame result is then optimised over the whole take (:func:`refine`);
+    its name is the inner solver's with ``+whole``. ``announce(stage)``, if given, is told when the
+    whole-take stage starts."""
+
+    inner: Solver
+    settings: WholeTakeSettings = field(default_factory=WholeTakeSettings)
+    announce: Callable[[str], None] | None = None
+
+    @property
+    def name(self) -> str:
+        return f"{self.inner.name}{WHOLE_TAKE}"
+
+    @property
+    def criteria(self) -> tuple[str, ...]:
+        return tuple(getattr(self.inner, "criteria", ()))
+
+    def __call__(self, problem: Problem) -> SolverResult:
+        result = self.inner(problem)
+        if self.announce is not None:
+            self.announce(f"optimising the whole take ({problem.n_frames} frames)")
+        done = refine(problem, result.q, self.settings)
+        diagnostics = replace(
+            result.diagnostics,
+            solve_time=result.diagnostics.solve_time + done.seconds / max(problem.n_frames, 1),
+        )
+        info = {**result.info, "whole_take": done}
+        return SolverResult(done.q, diagnostics, info)
+
+
+__all__ = [
+    "Linearisation",
+    "Refinement",
+    "Take",
+    "WholeTake",
+    "WholeTakeSettings",
+    "difference_rows",
+    "refine",
+]

@@ -1,0 +1,120 @@
+"""The whole-take stage (hlik.solvers.whole_take): its rows are the controller check's, its torque
+derivatives MuJoCo's, and on recorded takes it turns the hands toward their targets within every
+limit, leaving a motion already on its targets alone."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from conftest import central_differences
+from hlik.executable import controller_checks
+from hlik.pipeline import RunSpec, run
+from hlik.robot.model import load_robot
+from hlik.solvers.catalog import solver_spec
+from hlik.solvers.whole_take import REACH_ROOM, Take, WholeTakeSettings, difference_rows, refine
+from hlik.util.errors import SettingsError
+
+BUNDLED = ("armar3", "armar6", "dual_panda")
+
+
+def _random_motion(robot, frames: int, seed: int) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    lower, upper = np.maximum(robot.lower, -2.5), np.minimum(robot.upper, 2.5)
+    start = np.clip(robot.home + rng.normal(0, 0.3, robot.dof), lower, upper)
+    return np.clip(start + np.cumsum(rng.normal(0, 0.01, (frames, robot.dof)), axis=0), lower, upper)
+
+
+@pytest.mark.parametrize("name", BUNDLED)
+def test_the_torque_derivatives_are_the_torques_finite_differences(name):
+    robot = load_robot(name)
+    q = _random_motion(robot, 5, seed=1)
+    take = Take(robot, np.zeros((5, 2, 3)), np.tile(np.eye(3), (5, 2, 1, 1)), dt=0.01, detect=0.05)
+    torque, jac = take.torques(q)
+    n = robot.dof
+    for t in range(5):  # each frame's torque by each neighbour's configuration
+        for k, s in enumerate((t - 1, t, t + 1)):
+            if not 0 <= s < 5:
+                continue
+
+            def tau_of(qs, t=t, s=s):
+                moved = q.copy()
+                moved[s] = qs
+                return take.torques(moved)[0][t]
+
+            expected = central_differences(tau_of, q[s], eps=1e-6)
+            assert np.allclose(jac[t, k], expected, rtol=1e-3, atol=1e-3 * np.abs(expected).max()), (t, s)
+    assert torque.shape == (5, n) and np.all(jac[0, 0] == 0.0)  # at rest before the first frame
+
+
+@pytest.mark.parametrize("frames", [3, 7, 40])
+def test_the_difference_rows_are_the_controller_checks(frames):
+    rng = np.random.default_rng(frames)
+    q = np.cumsum(rng.normal(0, 1.0, (frames, 2)), axis=0)
+    velocity = np.vstack([np.zeros((1, 2)), np.diff(q, axis=0)])  # into each frame, at rest before
+    accel = np.diff(velocity, axis=0)  # frames 0..T-2
+    jerk = np.vstack([np.zeros((1, 2)), np.diff(accel, axis=0)])  # into frames 0..T-2
+    assert np.allclose(difference_rows(frames, 1) @ q, velocity[1:])
+    assert np.allclose(difference_rows(frames, 2) @ q, accel)
+    assert np.allclose(difference_rows(frames, 3) @ q, jerk)
+
+
+@pytest.fixture(scope="module")
+def peel_runs(takes):
+    """The Peel take's 2.5-4.5 s on 2-Panda (its right hand up to 13 deg off with the QP), the QP + SYN +
+    HJA_r run and the same run optimised over the whole take."""
+    (take,) = [p for p in takes if p.name.startswith("Peel_")]
+    spec = RunSpec(motion=take, robot="dual_panda", criteria=("SYN", "HJA_r"), span=(2.5, 4.5))
+    robot = load_robot("dual_panda")
+    plain = run(spec, robot=robot)
+    whole = run(replace(spec, whole_take=True), robot=robot, learned=plain.learned)
+    return robot, plain, whole
+
+
+def _beyond(fori: np.ndarray, band: float) -> float:
+    return float(np.sum(np.maximum(fori - band, 0.0) ** 2))
+
+
+def test_the_whole_take_turns_the_hands_toward_their_targets_within_every_limit(peel_runs):
+    robot, plain, whole = peel_runs
+    settings = WholeTakeSettings()
+    traj, ev = whole.trajectory, whole.evaluation
+    assert traj.solver == "qp+whole" and solver_spec(traj.solver).name == "qp"
+    # the hands turned toward their targets: the orientation beyond the band falls by a third at least
+    before, after = (
+        _beyond(plain.evaluation.fori, settings.orientation_band),
+        _beyond(ev.fori, settings.orientation_band),
+    )
+    assert after < 0.67 * before, (before, after)
+    # and stay on their positions: within the merit's sphere about the band or the run's own error
+    band = np.maximum(np.abs(plain.trajectory.tcp_pos - plain.trajectory.targets.pos), settings.position_band)
+    assert np.all(ev.fpos <= REACH_ROOM * np.linalg.norm(band, axis=-1) + 1e-9)
+    # what a controller checks, by MuJoCo (mj_inverse, distances), not by the rows
+    c = controller_checks(traj, robot)
+    assert c.acceleration_ratio.max() <= 1.0 + 1e-6
+    assert c.torque_ratio.max() <= 1.0
+    assert ev.max_speed_ratio <= 1.0 + 1e-6
+    assert not ev.collisions.any()
+    assert not c.at_stop.any()
+    assert c.lowest_point >= c.base_height - 1e-6
+
+
+def test_a_motion_on_its_targets_is_left_alone(peel_runs):
+    """With the run's own TCP poses as targets nothing is off: no step lowers the merit."""
+    robot, plain, _ = peel_runs
+    from hlik.problem.problem import build_problem
+
+    traj = plain.trajectory
+    problem = build_problem(plain.motion, robot, traj.placement)
+    on_target = replace(problem, targets=replace(problem.targets, pos=traj.tcp_pos, rot=traj.tcp_rot))
+    done = refine(on_target, traj.q)
+    assert done.accepted == 0
+    assert np.array_equal(done.q, traj.q)
+
+
+def test_the_whole_take_is_refused_for_the_relative_scenario_before_anything_is_read():
+    spec = RunSpec(scenario="relative", whole_take=True)
+    with pytest.raises(SettingsError, match="whole-take"):
+        spec.check()
