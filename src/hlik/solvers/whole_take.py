@@ -61,6 +61,8 @@ class WholeTakeSettings:
     Attributes:
         iterations: Linearisations (QP solves) at most.
         position_band: Each hand within this of its target per axis, m (or as far as the run left it).
+        position_cost: Weight per m^2 of each hand's distance from its target (inside the band: the
+            hands as near as the rest allows).
         orientation_band: A hand turned less than this from its target costs nothing, rad; beyond
             it, the square of the angle beyond.
         smoothness: Weight of the squared second differences of the change made to the run
@@ -73,6 +75,8 @@ class WholeTakeSettings:
         stop_margin: Kept from every position stop, rad.
         headroom: Share of the speed, acceleration and jerk limits the rows allow.
         torque_fraction: Share of the effort limits the linearised torque rows allow.
+        torque_watch: Only torques above this share of their efforts get rows (fewer rows, a faster
+            QP; a step that takes another over its effort is refused).
         collision_margin: Least distance between collision geoms, m.
         collision_detect: Pairs closer than this at the linearisation get a row, m.
         min_trust_region: Stop once the trust region is below this, rad.
@@ -83,12 +87,14 @@ class WholeTakeSettings:
     position_band: float = 0.003
     orientation_band: float = math.radians(3.0)
     pull: float = 0.1
+    position_cost: float = 100.0
     smoothness: float = 1e4
     trust_region: float = math.radians(3.0)
     max_trust_region: float = math.radians(30.0)
     stop_margin: float = STOP_MARGIN
     headroom: float = 0.99
     torque_fraction: float = 0.9
+    torque_watch: float = 0.5
     collision_margin: float = 0.01
     collision_detect: float = 0.05
     min_trust_region: float = 1e-4
@@ -289,10 +295,12 @@ def _merit(
     lin: Linearisation, q: np.ndarray, run: np.ndarray, reach: np.ndarray, s: WholeTakeSettings
 ) -> float:
     beyond = np.maximum(np.linalg.norm(lin.position, axis=-1) - reach, 0.0)
+    off = s.position_cost * np.sum(lin.position**2)
     turned = np.maximum(np.linalg.norm(lin.orientation, axis=-1) - s.orientation_band, 0.0)
     change = q - run
     return float(
-        np.sum(turned**2)
+        off
+        + np.sum(turned**2)
         + s.pull * np.sum(change**2)
         + s.smoothness * np.sum(np.diff(change, 2, axis=0) ** 2)
         + PENALTY * np.sum(beyond**2)
@@ -322,6 +330,9 @@ def _step(
     jw = jo * weight[..., None]
     hessian = np.einsum("tacn,tacm->tnm", jw, jw) + (s.pull + _EPS) * np.eye(n)
     gradient = np.einsum("tacn,tac->tn", jw, residual) + s.pull * (q - run)
+    if s.position_cost > 0.0:  # the hands as near their targets as the rest allows, inside the band
+        hessian += s.position_cost * np.einsum("tacn,tacm->tnm", jp, jp)
+        gradient += s.position_cost * np.einsum("tacn,tac->tn", jp, lin.position)
     smooth = sp.kron(sp.diags([1.0, -2.0, 1.0], [0, 1, 2], shape=(t_n - 2, t_n)), sp.identity(n))
     smooth_h = s.smoothness * (smooth.T @ smooth)
     rows, upper = [], []
@@ -338,9 +349,13 @@ def _step(
     hands = sp.block_diag(list(jp.reshape(t_n, 6, n)), format="csr")
     keep(hands, lin.position.reshape(-1), -band.reshape(-1), band.reshape(-1))
     if len(limited):
+        # rows for the torques above torque_watch of their efforts only (a step that takes another
+        # over its effort is refused by refine)
         allowed = np.tile(s.torque_fraction * effort[limited], t_n)
-        torque_rows = _torque_rows(lin.torque_jacobian[:, :, limited], t_n, n)
-        keep(torque_rows, lin.torque[:, limited].reshape(-1), -allowed, allowed)
+        value = lin.torque[:, limited].reshape(-1)
+        watched = np.abs(value) > s.torque_watch * np.tile(effort[limited], t_n)
+        torque_rows = _torque_rows(lin.torque_jacobian[:, :, limited], t_n, n)[watched]
+        keep(torque_rows, value[watched], -allowed[watched], allowed[watched])
     near = [(t, d, g) for t, (d, g) in enumerate(lin.pairs) if len(d)]
     if near:
         frames = np.concatenate([np.full(len(d), t) for t, d, _ in near])
