@@ -85,8 +85,8 @@ class WholeTakeSettings:
 
     iterations: int = 20
     position_band: float = 0.003
-    orientation_band: float = math.radians(3.0)
-    pull: float = 0.1
+    orientation_band: float = math.radians(2.0)
+    pull: float = 0.03
     position_cost: float = 100.0
     smoothness: float = 1e4
     trust_region: float = math.radians(3.0)
