@@ -61,6 +61,8 @@ class WholeTakeSettings:
     Attributes:
         iterations: Linearisations (QP solves) at most.
         position_band: Each hand within this of its target per axis, m (or as far as the run left it).
+        trunk_pull: The same pull on the extra (trunk) joints (ARMAR-III's hip), which would else
+            turn the hands with the body.
         position_cost: Weight per m^2 of each hand's distance from its target (inside the band: the
             hands as near as the rest allows).
         orientation_band: A hand turned less than this from its target costs nothing, rad; beyond
@@ -87,6 +89,7 @@ class WholeTakeSettings:
     position_band: float = 0.003
     orientation_band: float = math.radians(2.0)
     pull: float = 0.03
+    trunk_pull: float = 1.0
     position_cost: float = 100.0
     smoothness: float = 1e4
     trust_region: float = math.radians(3.0)
@@ -247,6 +250,8 @@ def refine(problem: Problem, q: np.ndarray, settings: WholeTakeSettings | None =
     lo = np.where(np.isinf(robot.lower), -np.inf, robot.lower + s.stop_margin)
     hi = np.where(np.isinf(robot.upper), np.inf, robot.upper - s.stop_margin)
     run = q.copy()
+    pull = np.full(n, s.pull)
+    pull[[robot.joint_names.index(j) for j in robot.extra_joints]] = s.trunk_pull
     eye = sp.identity(n, format="csr")
     rates = [(1, robot.velocity_limit * problem.dt), (2, robot.acceleration_limit * problem.dt**2)]
     rates.append((3, robot.jerk_limit * problem.dt**3))
@@ -263,14 +268,14 @@ def refine(problem: Problem, q: np.ndarray, settings: WholeTakeSettings | None =
     # on every joint bends a hand's path by millimetres)
     band = np.maximum(np.abs(lin.position), s.position_band)  # (T, 2, 3)
     reach = REACH_ROOM * np.linalg.norm(band, axis=-1)
-    cost = _merit(lin, q, run, reach, s)
+    cost = _merit(lin, q, run, reach, pull, s)
     first = cost
     region, iterations, accepted = s.trust_region, 0, 0
     if cost == 0.0:  # every hand within its bands already
         region = 0.0
     while iterations < s.iterations and region >= s.min_trust_region:
         iterations += 1
-        step = _step(lin, q, run, lo, hi, diffs, effort, limited, band, region, s)
+        step = _step(lin, q, run, pull, lo, hi, diffs, effort, limited, band, region, s)
         if step is None:
             region /= 2.0
             continue
@@ -278,7 +283,7 @@ def refine(problem: Problem, q: np.ndarray, settings: WholeTakeSettings | None =
         at_trial = take.linearise(trial)
         over = np.max(np.abs(at_trial.torque[:, limited]) / effort[limited], initial=0.0)
         now = np.max(np.abs(lin.torque[:, limited]) / effort[limited], initial=0.0)
-        trial_cost = _merit(at_trial, trial, run, reach, s)
+        trial_cost = _merit(at_trial, trial, run, reach, pull, s)
         safe = over <= max(1.0, now) and at_trial.closest >= min(0.5 * s.collision_margin, lin.closest)
         if safe and trial_cost < cost:
             settled = cost - trial_cost < s.tolerance * cost
@@ -292,7 +297,12 @@ def refine(problem: Problem, q: np.ndarray, settings: WholeTakeSettings | None =
 
 
 def _merit(
-    lin: Linearisation, q: np.ndarray, run: np.ndarray, reach: np.ndarray, s: WholeTakeSettings
+    lin: Linearisation,
+    q: np.ndarray,
+    run: np.ndarray,
+    reach: np.ndarray,
+    pull: np.ndarray,
+    s: WholeTakeSettings,
 ) -> float:
     beyond = np.maximum(np.linalg.norm(lin.position, axis=-1) - reach, 0.0)
     off = s.position_cost * np.sum(lin.position**2)
@@ -301,7 +311,7 @@ def _merit(
     return float(
         off
         + np.sum(turned**2)
-        + s.pull * np.sum(change**2)
+        + np.sum(pull * change**2)
         + s.smoothness * np.sum(np.diff(change, 2, axis=0) ** 2)
         + PENALTY * np.sum(beyond**2)
     )
@@ -311,6 +321,7 @@ def _step(
     lin: Linearisation,
     q: np.ndarray,
     run: np.ndarray,
+    pull: np.ndarray,
     lo: np.ndarray,
     hi: np.ndarray,
     diffs: list[tuple[sp.csr_matrix, np.ndarray]],
@@ -328,8 +339,8 @@ def _step(
     weight = (angle > s.orientation_band).astype(float)
     residual = lin.orientation * (1.0 - s.orientation_band / np.maximum(angle, 1e-12)) * weight
     jw = jo * weight[..., None]
-    hessian = np.einsum("tacn,tacm->tnm", jw, jw) + (s.pull + _EPS) * np.eye(n)
-    gradient = np.einsum("tacn,tac->tn", jw, residual) + s.pull * (q - run)
+    hessian = np.einsum("tacn,tacm->tnm", jw, jw) + np.diag(pull + _EPS)
+    gradient = np.einsum("tacn,tac->tn", jw, residual) + pull * (q - run)
     if s.position_cost > 0.0:  # the hands as near their targets as the rest allows, inside the band
         hessian += s.position_cost * np.einsum("tacn,tacm->tnm", jp, jp)
         gradient += s.position_cost * np.einsum("tacn,tac->tn", jp, lin.position)
