@@ -9,7 +9,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from conftest import central_differences
+from conftest import central_differences, data_file
 from hlik.executable import controller_checks
 from hlik.pipeline import RunSpec, run
 from hlik.robot.model import load_robot
@@ -114,7 +114,57 @@ def test_a_motion_on_its_targets_is_left_alone(peel_runs):
     assert np.array_equal(done.q, traj.q)
 
 
-def test_the_whole_take_is_refused_for_the_relative_scenario_before_anything_is_read():
-    spec = RunSpec(scenario="relative", whole_take=True)
+@pytest.mark.parametrize("change", [{"stack": "relative_pose"}, {"solver": "jm"}])
+def test_the_whole_take_is_refused_where_it_cannot_keep_its_promise_before_anything_is_read(change):
+    """A stack tracking the relative pose (the stage optimises both hands' poses); JM, whose
+    motion keeps no limit the stage could start within."""
     with pytest.raises(SettingsError, match="whole-take"):
-        spec.check()
+        RunSpec(whole_take=True, **change).check()
+
+
+def test_scoring_the_relative_pose_of_a_pose_tracking_run_is_allowed():
+    RunSpec(scenario="relative", whole_take=True).check()
+
+
+def test_the_stage_keeps_the_solvers_own_limits():
+    from hlik.solvers.settings import QPSettings
+    from hlik.solvers.whole_take import settings_for
+
+    s = settings_for(QPSettings(stop_margin=0.17, torque_fraction=0.5, collision_margin=0.03))
+    assert (s.stop_margin, s.torque_fraction, s.collision_margin) == (0.17, 0.5, 0.03)
+    assert settings_for(None) == WholeTakeSettings()
+
+
+def test_a_wider_stop_margin_of_the_stack_holds_after_the_stage(takes):
+    """A user's 10 deg margin: the QP keeps it, and so does the stage after it (it kept its own 3
+    deg before)."""
+    (take,) = [p for p in takes if p.name.startswith("Close_")]
+    margin = np.radians(10.0)
+    spec = RunSpec(motion=take, robot="dual_panda", span=(1.0, 2.0), settings={"stop_margin": margin})
+    result = run(replace(spec, whole_take=True))
+    robot, q = result.robot, result.trajectory.q
+    margin = np.minimum(margin, 0.2 * (robot.upper - robot.lower))  # at most a fifth of a range
+    limited = np.isfinite(robot.lower)
+    assert np.all(q[:, limited] >= robot.lower[limited] + margin[limited] - 1e-6)
+    assert np.all(q[:, limited] <= robot.upper[limited] - margin[limited] + 1e-6)
+
+
+def test_hands_out_of_reach_are_not_turned_further_off_for_their_positions():
+    """Field case unreachable_forward_2m (the subject carried 2 m forward for 2 s) on ARMAR-6: the
+    hands cannot reach, and the stage does not buy centimetres of their distance with their
+    orientation (it did while every hand's distance was in its objective: median 32 -> 37 deg at
+    100 Hz). It turns them toward their targets instead, starting before the stretch (there up to
+    5 deg further off than the QP left them, which turns only once it is there)."""
+    from conftest import DATA
+
+    path = DATA.parent / "field_cases" / "unreachable_forward_2m.xml"
+    if not path.exists():
+        data_file("../field_cases/unreachable_forward_2m.xml")
+    spec = RunSpec(motion=path, robot="armar6", rate=50.0)
+    plain = run(spec)
+    whole = run(replace(spec, whole_take=True), learned=plain.learned, placement=plain.trajectory.placement)
+    far = plain.evaluation.fpos > 0.05
+    assert far.sum() > 100
+    before, after = np.degrees(plain.evaluation.fori), np.degrees(whole.evaluation.fori)
+    assert np.median(after[far]) < np.median(before[far])  # 34 -> 18 deg
+    assert np.median(after) < np.median(before)

@@ -180,9 +180,9 @@ def run(
     wall, cpu = time.perf_counter(), time.process_time()
     solver = get_solver(spec.solver, settings, step, limits)
     if spec.whole_take:
-        from hlik.solvers.whole_take import WholeTake
+        from hlik.solvers.whole_take import WholeTake, settings_for
 
-        solver = WholeTake(solver, announce=lambda stage: _say(progress, stage))
+        solver = WholeTake(solver, settings_for(settings), announce=lambda stage: _say(progress, stage))
     traj = retarget(motion, robot, solver, placement, learned)
     traj = replace(traj, scenario=scenario)  # what hlik evaluate scores it by, unless told
     wall, cpu = time.perf_counter() - wall, time.process_time() - cpu

@@ -60,7 +60,8 @@ class RunSpec:
         gradients: SLSQP's gradients, ``analytic`` or ``fd`` (finite differences, as the paper).
         settings: Solver settings fields to override, name -> value (``bench --set``).
         whole_take: Optimise the solver's result over the whole take at once
-            (:mod:`hlik.solvers.whole_take`; the ``pose`` scenario).
+            (:mod:`hlik.solvers.whole_take`, keeping the solver's limits; a stack tracking both
+            hands' poses, a solver other than ``jm``).
     """
 
     motion: Path | None = None
@@ -148,10 +149,15 @@ class RunSpec:
             raise SettingsError(
                 f"{self.solver} maps joints and cannot add criteria; choose --solver {takers}"
             )
-        if self.whole_take and (self.scenario or stack.scenario) != "pose":
+        if self.whole_take and stack.scenario != "pose":  # what the solver tracks: the stack's
             raise SettingsError(
-                "--whole-take optimises both hands' poses (scenario pose); "
-                "the relative scenario is retargeted frame by frame only"
+                f"--whole-take optimises both hands' poses; the stack {stack.name} tracks their "
+                f"{stack.scenario} pose, retargeted frame by frame only"
+            )
+        if self.whole_take and not solver.tracks_targets:
+            raise SettingsError(
+                f"--whole-take starts from a motion within the limits; {self.solver} maps the joints "
+                "and keeps none: choose --solver jv, qp, slsqp or mink"
             )
         if self.metric is not None:
             from hlik.criteria.unified import load_metric  # NumPy: after the quick checks

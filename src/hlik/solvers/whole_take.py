@@ -4,24 +4,31 @@ A frame-by-frame solver (JV, the QP, SLSQP) sees its own frame and, with its loo
 fitted in joint space; where a turn of the hand needs the joints to start early, it lags. Here the
 solved motion q (T, n) is the start of a sequential convex programme over all T frames at once.
 Each iteration linearises, at the current motion, both TCP poses (``mj_jacSite``), the joint
-torques (``mujoco.mjd_inverseFD`` on the controller check's inverse dynamics) and the collision
-pairs closer than ``collision_detect`` (:func:`hlik.robot.collision.near_pairs`), and solves one
-sparse QP (Clarabel, through qpsolvers) for every frame's step dq:
+torques (``mujoco.mjd_inverseFD`` on the controller check's inverse dynamics,
+:mod:`hlik.robot.dynamics`) and the collision pairs closer than ``collision_detect``
+(:func:`hlik.robot.collision.near_pairs`), and solves one sparse QP (Clarabel, through qpsolvers)
+for every frame's step dq:
 
-    min  sum_t sum_hands |e_o + J_o dq_t|^2 + pull |q_t + dq_t - q_run,t|^2
-    s.t. the stops less ``stop_margin``; |dq_t| <= the trust region;
+    min  sum_t sum_hands |e_o (1 - band / |e_o|) + J_o dq_t|^2   (hands turned beyond the band)
+         + position_cost |e_p + J_p dq_t|^2                      (hands within sqrt(3) bands)
+         + pull_j (q_t + dq_t - q_run,t)^2 + smoothness |D2 (q + dq - q_run)|^2
+    s.t. the stops less ``stop_margin``; |dq_t| <= the trust region; the last two frames kept;
          speed, acceleration (and jerk) limits as the controller check differences them
          (:mod:`hlik.executable`: at rest before the first frame), times ``headroom``;
-         each hand within ``position_band`` m per axis of its target (or as far as it is);
-         torques within ``torque_fraction`` of the efforts (or as far over as they are);
-         each near pair at least ``collision_margin`` apart (or as close as it is),
+         each hand within ``position_band`` m per axis of its target (or as far as the run left it);
+         torques above ``torque_watch`` of their efforts within ``torque_fraction`` of them;
+         each near pair at least ``collision_margin`` apart,
 
-with e_o the rotation vector of R R*^T (rad). ``pull`` keeps the posture the criteria shaped where
-the hands need nothing else (the criteria themselves are not re-evaluated). A step is kept only if
-the merit (orientation error, pull, and :data:`PENALTY` per m^2 a hand ends further off than
-sqrt(3) ``position_band`` or than the run left it) falls, no torque rises over its effort and no
-pair comes within half the margin; else the trust region halves. The linear rows are kept to
-Clarabel's tolerance (1e-8), so the result keeps the limits the controller check applies.
+with e_o the rotation vector of R R*^T (rad), e_p the TCP's offset (m). A row the start already
+breaks is moved to where the start is. ``pull`` keeps the posture the criteria shaped where the
+hands need nothing else (the criteria themselves are not evaluated again); the take ends in the
+solver's own last two frames, from which the solvers keep the joints able to brake before their
+stops' margins. A step is kept only if the merit (the objective's terms as they are at the step,
+and :data:`PENALTY` per m^2 a hand ends further off than :data:`REACH_ROOM` times its rows' box)
+falls, no torque ends above ``torque_fraction`` of its effort (or above where it was) and no pair
+closer than half the margin (or than it was); else the trust region halves. The rows are kept to
+Clarabel's tolerance; ``headroom`` leaves 1 % for it. A solver's motion that breaks a limit (JM)
+keeps breaking it no more than it did: :func:`hlik.run_spec.RunSpec.check` refuses JM.
 
 The figures behind the defaults are in the README ("The whole take at once").
 """
@@ -45,7 +52,8 @@ from hlik.robot.dynamics import inverse_model
 from hlik.robot.model import SIDES, Robot
 from hlik.solvers.base import Solver, SolverResult
 from hlik.solvers.catalog import WHOLE_TAKE
-from hlik.solvers.settings import STOP_MARGIN
+from hlik.solvers.limits import MotionLimits
+from hlik.solvers.settings import STOP_MARGIN, LimitSettings
 from hlik.util.spatial import rotation_vector
 
 # rad^2 per m^2 in the merit: a hand 1 mm beyond its band costs as much as 0.3 rad off in one frame
@@ -102,6 +110,17 @@ class WholeTakeSettings:
     collision_detect: float = 0.05
     min_trust_region: float = 1e-4
     tolerance: float = 1e-4
+
+
+def settings_for(solver_settings: object | None, **changes) -> WholeTakeSettings:
+    """The stage's settings keeping a solver's limits: its ``stop_margin``, ``torque_fraction`` and
+    ``collision_margin`` where its settings have them (JV, QP, SLSQP, mink), the defaults else."""
+    own = {
+        name: getattr(solver_settings, name)
+        for name in ("stop_margin", "torque_fraction", "collision_margin")
+        if hasattr(solver_settings, name)
+    }
+    return replace(WholeTakeSettings(), **{**own, **changes})
 
 
 @dataclass(frozen=True, eq=False)
@@ -220,7 +239,7 @@ class Refinement:
 def difference_rows(t_n: int, order: int) -> sp.csr_matrix:
     """(T - 1, T) the ``order``-th differences of a take at rest before its first frame, as the
     controller check takes them: speed (1) into frames 1..T-1, acceleration (2) of frames 0..T-2,
-    jerk (3) into frames 1..T-2 (its first row 0 where T < 3)."""
+    jerk (3) into frames 1..T-2 (its first row 0, as the check's first jerk)."""
     first = sp.diags([-1.0, 1.0], [0, 1], shape=(t_n - 1, t_n), format="csr")
     if order == 1:
         return first
@@ -231,7 +250,7 @@ def difference_rows(t_n: int, order: int) -> sp.csr_matrix:
         return acc
     acc_full = sp.vstack([acc, sp.csr_matrix((1, t_n))]).tocsr()  # 0 at the last frame
     jerk = sp.diags([-1.0, 1.0], [0, 1], shape=(t_n - 1, t_n)) @ acc_full
-    return sp.vstack([sp.csr_matrix((1, t_n)), jerk[:-1]]).tocsr() if t_n > 2 else jerk.tocsr()
+    return sp.vstack([sp.csr_matrix((1, t_n)), jerk[:-1]]).tocsr()
 
 
 def refine(problem: Problem, q: np.ndarray, settings: WholeTakeSettings | None = None) -> Refinement:
@@ -247,8 +266,13 @@ def refine(problem: Problem, q: np.ndarray, settings: WholeTakeSettings | None =
     take = Take(robot, targets.pos, targets.rot, problem.dt, s.collision_detect)
     if t_n < 2:
         return Refinement(q.copy(), 0, 0, (0.0, 0.0), time.perf_counter() - start)
-    lo = np.where(np.isinf(robot.lower), -np.inf, robot.lower + s.stop_margin)
-    hi = np.where(np.isinf(robot.upper), np.inf, robot.upper - s.stop_margin)
+    inner = MotionLimits.of(robot, LimitSettings(stop_margin=s.stop_margin))  # a fifth of a range at most
+    lo, hi = inner.inner_lower, inner.inner_upper
+    unlimited = np.isinf(robot.lower)
+    given = q
+    q = q.copy()
+    q[:, unlimited] = np.unwrap(q[:, unlimited], axis=0)  # a 2 pi jump is no step
+    turns = q - given  # multiples of 2 pi, given back at the end
     run = q.copy()
     pull = np.full(n, s.pull)
     pull[[robot.joint_names.index(j) for j in robot.extra_joints]] = s.trunk_pull
@@ -281,10 +305,12 @@ def refine(problem: Problem, q: np.ndarray, settings: WholeTakeSettings | None =
             continue
         trial = q + step
         at_trial = take.linearise(trial)
-        over = np.max(np.abs(at_trial.torque[:, limited]) / effort[limited], initial=0.0)
-        now = np.max(np.abs(lin.torque[:, limited]) / effort[limited], initial=0.0)
+        # no torque above the fraction of its effort (or above where it was), no pair closer than
+        # half the margin (or than it was)
+        allowed = np.maximum(s.torque_fraction * effort[limited], np.abs(lin.torque[:, limited]))
+        strong = np.all(np.abs(at_trial.torque[:, limited]) <= allowed + 1e-9)
         trial_cost = _merit(at_trial, trial, run, reach, pull, s)
-        safe = over <= max(1.0, now) and at_trial.closest >= min(0.5 * s.collision_margin, lin.closest)
+        safe = strong and at_trial.closest >= min(0.5 * s.collision_margin, lin.closest)
         if safe and trial_cost < cost:
             settled = cost - trial_cost < s.tolerance * cost
             q, lin, cost, accepted = trial, at_trial, trial_cost, accepted + 1
@@ -293,7 +319,12 @@ def refine(problem: Problem, q: np.ndarray, settings: WholeTakeSettings | None =
                 break
         else:
             region /= 2.0
-    return Refinement(q, iterations, accepted, (first, cost), time.perf_counter() - start)
+    return Refinement(q - turns, iterations, accepted, (first, cost), time.perf_counter() - start)
+
+
+def _near(s: WholeTakeSettings) -> float:
+    """The distance, m, within which a hand's distance from its target costs (the band's corner)."""
+    return math.sqrt(3.0) * s.position_band
 
 
 def _merit(
@@ -305,7 +336,7 @@ def _merit(
     s: WholeTakeSettings,
 ) -> float:
     beyond = np.maximum(np.linalg.norm(lin.position, axis=-1) - reach, 0.0)
-    off = s.position_cost * np.sum(lin.position**2)
+    off = s.position_cost * np.sum(np.minimum(np.sum(lin.position**2, axis=-1), _near(s) ** 2))
     turned = np.maximum(np.linalg.norm(lin.orientation, axis=-1) - s.orientation_band, 0.0)
     change = q - run
     return float(
@@ -341,9 +372,12 @@ def _step(
     jw = jo * weight[..., None]
     hessian = np.einsum("tacn,tacm->tnm", jw, jw) + np.diag(pull + _EPS)
     gradient = np.einsum("tacn,tac->tn", jw, residual) + pull * (q - run)
-    if s.position_cost > 0.0:  # the hands as near their targets as the rest allows, inside the band
-        hessian += s.position_cost * np.einsum("tacn,tacm->tnm", jp, jp)
-        gradient += s.position_cost * np.einsum("tacn,tac->tn", jp, lin.position)
+    if s.position_cost > 0.0:
+        # the hands as near their targets as the rest allows, where they are near: a hand the
+        # solver left further off (a target out of reach) is not pulled at its orientation's cost
+        near = (np.linalg.norm(lin.position, axis=-1) < _near(s)).astype(float)[..., None, None]
+        hessian += s.position_cost * np.einsum("tacn,tacm->tnm", jp * near, jp * near)
+        gradient += s.position_cost * np.einsum("tacn,tac->tn", jp * near, lin.position)
     smooth = sp.kron(sp.diags([1.0, -2.0, 1.0], [0, 1, 2], shape=(t_n - 2, t_n)), sp.identity(n))
     smooth_h = s.smoothness * (smooth.T @ smooth)
     rows, upper = [], []
@@ -379,6 +413,9 @@ def _step(
     box_lo = np.maximum(np.tile(lo, t_n) - flat, -region)
     box_hi = np.minimum(np.tile(hi, t_n) - flat, region)
     box_lo, box_hi = np.minimum(box_lo, 0.0), np.maximum(box_hi, 0.0)
+    # the take ends as the solver ended it: its last two frames, from which it can brake before
+    # the stops' margins (the solvers keep that; the rows here do not)
+    box_lo[-2 * n :], box_hi[-2 * n :] = 0.0, 0.0
     with warnings.catch_warnings(record=True) as said:  # Clarabel short of its tolerances
         warnings.simplefilter("always")
         x = qpsolvers.solve_qp(
