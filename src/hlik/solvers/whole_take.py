@@ -10,7 +10,7 @@ torques (``mujoco.mjd_inverseFD`` on the controller check's inverse dynamics,
 for every frame's step dq:
 
     min  sum_t sum_hands |e_o (1 - band / |e_o|) + J_o dq_t|^2   (hands turned beyond the band)
-         + position_cost |e_p + J_p dq_t|^2                      (hands within sqrt(3) bands)
+         + position_cost |e_p + J_p dq_t|^2   (Huber: linear beyond the band's corner)
          + pull_j (q_t + dq_t - q_run,t)^2 + smoothness |D2 (q + dq - q_run)|^2
     s.t. the stops less ``stop_margin``; |dq_t| <= the trust region; the last two frames kept;
          speed, acceleration (and jerk) limits as the controller check differences them
@@ -323,7 +323,8 @@ def refine(problem: Problem, q: np.ndarray, settings: WholeTakeSettings | None =
 
 
 def _near(s: WholeTakeSettings) -> float:
-    """The distance, m, within which a hand's distance from its target costs (the band's corner)."""
+    """The distance, m, beyond which a hand's distance from its target costs linearly, not
+    quadratically (the corner of its band)."""
     return math.sqrt(3.0) * s.position_band
 
 
@@ -336,7 +337,8 @@ def _merit(
     s: WholeTakeSettings,
 ) -> float:
     beyond = np.maximum(np.linalg.norm(lin.position, axis=-1) - reach, 0.0)
-    off = s.position_cost * np.sum(np.minimum(np.sum(lin.position**2, axis=-1), _near(s) ** 2))
+    dist, near = np.linalg.norm(lin.position, axis=-1), _near(s)
+    off = s.position_cost * np.sum(np.where(dist <= near, dist**2, 2.0 * near * dist - near**2))
     turned = np.maximum(np.linalg.norm(lin.orientation, axis=-1) - s.orientation_band, 0.0)
     change = q - run
     return float(
@@ -373,11 +375,14 @@ def _step(
     hessian = np.einsum("tacn,tacm->tnm", jw, jw) + np.diag(pull + _EPS)
     gradient = np.einsum("tacn,tac->tn", jw, residual) + pull * (q - run)
     if s.position_cost > 0.0:
-        # the hands as near their targets as the rest allows, where they are near: a hand the
-        # solver left further off (a target out of reach) is not pulled at its orientation's cost
-        near = (np.linalg.norm(lin.position, axis=-1) < _near(s)).astype(float)[..., None, None]
-        hessian += s.position_cost * np.einsum("tacn,tacm->tnm", jp * near, jp * near)
-        gradient += s.position_cost * np.einsum("tacn,tac->tn", jp * near, lin.position)
+        # the hands as near their targets as the rest allows: the square of the distance within
+        # the band's corner, beyond it linear (Huber; as reweighted least squares), so that a hand
+        # out of reach is not pulled in at its orientation's cost
+        dist = np.linalg.norm(lin.position, axis=-1)
+        weight = np.sqrt(s.position_cost * np.minimum(1.0, _near(s) / np.maximum(dist, 1e-12)))
+        jn = jp * weight[..., None, None]
+        hessian += np.einsum("tacn,tacm->tnm", jn, jn)
+        gradient += np.einsum("tacn,tac->tn", jn, lin.position * weight[..., None])
     smooth = sp.kron(sp.diags([1.0, -2.0, 1.0], [0, 1, 2], shape=(t_n - 2, t_n)), sp.identity(n))
     smooth_h = s.smoothness * (smooth.T @ smooth)
     rows, upper = [], []
