@@ -135,7 +135,7 @@ WholeTakeOpt = Annotated[
         "--whole-take",
         help="Then optimise the solver's motion over the whole take at once (hlik.solvers.whole_take): "
         "the hands turned toward their targets where the frame-by-frame solver left them off, within "
-        "every limit; tens of ms a frame. Scenario pose only.",
+        "every limit the solver keeps; tens of ms a frame. Not with a relative-pose stack or --solver jm.",
         metavar=FLAG,
         show_default=False,
     ),

@@ -24,7 +24,7 @@ breaks is moved to where the start is. ``pull`` keeps the posture the criteria s
 hands need nothing else (the criteria themselves are not evaluated again); the take ends in the
 solver's own last two frames, from which the solvers keep the joints able to brake before their
 stops' margins. A step is kept only if the merit (the objective's terms as they are at the step,
-and :data:`PENALTY` per m^2 a hand ends further off than :data:`REACH_ROOM` times its rows' box)
+and :data:`PENALTY` per m^2 a hand ends further off than its rows' box corner and a band more)
 falls, no torque ends above ``torque_fraction`` of its effort (or above where it was) and no pair
 closer than half the margin (or than it was); else the trust region halves. The rows are kept to
 Clarabel's tolerance; ``headroom`` leaves 1 % for it. A solver's motion that breaks a limit (JM)
@@ -58,7 +58,6 @@ from hlik.util.spatial import rotation_vector
 
 # rad^2 per m^2 in the merit: a hand 1 mm beyond its band costs as much as 0.3 rad off in one frame
 PENALTY = 1e5
-REACH_ROOM = 1.5  # the merit's sphere over the rows' box corner
 _EPS = 1e-6  # rad^2: damping of every step, so that the QP is strictly convex
 
 
@@ -288,10 +287,11 @@ def refine(problem: Problem, q: np.ndarray, settings: WholeTakeSettings | None =
     limited = np.flatnonzero(np.isfinite(effort))
     lin = take.linearise(q)
     # each axis of each hand within the band or as far off as the run left it; the merit's sphere
-    # holds that box with room for the curvature the rows do not see (a step of the trust region
-    # on every joint bends a hand's path by millimetres)
+    # holds that box with a band more for the curvature the rows do not see (a step of the trust
+    # region on every joint bends a hand's path by millimetres), added, not scaled: a hand the
+    # solver left 4 cm off may not end 6 cm off
     band = np.maximum(np.abs(lin.position), s.position_band)  # (T, 2, 3)
-    reach = REACH_ROOM * np.linalg.norm(band, axis=-1)
+    reach = np.linalg.norm(band, axis=-1) + s.position_band
     cost = _merit(lin, q, run, reach, pull, s)
     first = cost
     region, iterations, accepted = s.trust_region, 0, 0
