@@ -82,6 +82,11 @@ def test_the_whole_take_turns_the_hands_toward_their_targets_within_every_limit(
     settings = WholeTakeSettings()
     traj, ev = whole.trajectory, whole.evaluation
     assert traj.solver == "qp+whole" and solver_spec(traj.solver).name == "qp"
+    # what the stage did reaches the run's summary
+    from hlik.cli.run import _solver_note
+
+    assert plain.whole_take is None and whole.whole_take.accepted >= 1
+    assert f"{whole.whole_take.accepted} steps kept" in _solver_note(whole)
     # the hands turned toward their targets: the orientation beyond the band falls by a third at least
     before, after = (
         _beyond(plain.evaluation.fori, settings.orientation_band),

@@ -14,6 +14,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING
 
 from hlik.criteria.learned import Learned, learn
 from hlik.criteria.unified import load_metric
@@ -31,6 +32,9 @@ from hlik.run_spec import RunSpec
 from hlik.solvers import SPECS, get_solver
 from hlik.solvers.stack_file import Stack
 from hlik.trajectory import Trajectory
+
+if TYPE_CHECKING:
+    from hlik.solvers.whole_take import Refinement
 from hlik.util.errors import SettingsError
 
 # (stage, done, total): what the run is doing, and how far (None, None: no count)
@@ -54,6 +58,7 @@ class RunResult:
             :attr:`warnings` adds those about the result.
         solve_seconds: Wall time of the solve, s.
         solve_cpu: CPU time of the solve, s.
+        whole_take: What the whole-take stage did (``spec.whole_take``; None without it).
     """
 
     spec: RunSpec
@@ -67,6 +72,7 @@ class RunResult:
     notes: tuple[str, ...]
     solve_seconds: float
     solve_cpu: float
+    whole_take: Refinement | None = None
 
     @property
     def warnings(self) -> list[str]:
@@ -179,16 +185,19 @@ def run(
     _say(progress, stage, 0, motion.n_frames)
     wall, cpu = time.perf_counter(), time.process_time()
     solver = get_solver(spec.solver, settings, step, limits)
+    refined: list[Refinement] = []
     if spec.whole_take:
         from hlik.solvers.whole_take import WholeTake, settings_for
 
-        solver = WholeTake(solver, settings_for(settings), announce=lambda stage: _say(progress, stage))
+        announce = lambda stage: _say(progress, stage)  # noqa: E731
+        solver = WholeTake(solver, settings_for(settings), announce=announce, report=refined.append)
     traj = retarget(motion, robot, solver, placement, learned)
     traj = replace(traj, scenario=scenario)  # what hlik evaluate scores it by, unless told
     wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
     _say(progress, "evaluating the criteria")
     ev = evaluate(traj, robot, learned, scenario=scenario, metric=metric)
-    return RunResult(spec, robot, motion, learned, traj, ev, scenario, tried, tuple(notes), wall, cpu)
+    whole = refined[0] if refined else None
+    return RunResult(spec, robot, motion, learned, traj, ev, scenario, tried, tuple(notes), wall, cpu, whole)
 
 
 def _say(progress: Progress | None, stage: str, done: int | None = None, total: int | None = None) -> None:

@@ -336,6 +336,13 @@ def _solver_note(result: RunResult) -> str:
         unit = "" if isinstance(settings, SLSQPSettings) else " per rad"
         said = f"look-ahead pulled at {pull:g}{unit}" if pull > 0 else "one pass, no look-ahead"
         notes.append(f"{said} (preview_cost)")
+    done = result.whole_take
+    if done is not None:  # --whole-take
+        merit = f"merit {done.merit[0]:.3g} -> {done.merit[1]:.3g}" if done.accepted else "no step kept"
+        notes.append(
+            f"then the whole take at once: {done.iterations} QPs, {done.accepted} steps kept, {merit}, "
+            f"{done.seconds:.1f} s (--whole-take)"
+        )
     return "; ".join(notes)
 
 

@@ -459,11 +459,12 @@ def _torque_rows(jac: np.ndarray, t_n: int, n: int) -> sp.csr_matrix:
 class WholeTake:
     """A solver whose frame-by-frame result is then optimised over the whole take (:func:`refine`);
     its name is the inner solver's with ``+whole``. ``announce(stage)``, if given, is told when the
-    whole-take stage starts."""
+    whole-take stage starts, ``report(refinement)`` what it did."""
 
     inner: Solver
     settings: WholeTakeSettings = field(default_factory=WholeTakeSettings)
     announce: Callable[[str], None] | None = None
+    report: Callable[[Refinement], None] | None = None
 
     @property
     def name(self) -> str:
@@ -478,6 +479,8 @@ class WholeTake:
         if self.announce is not None:
             self.announce(f"optimising the whole take ({problem.n_frames} frames)")
         done = refine(problem, result.q, self.settings)
+        if self.report is not None:
+            self.report(done)
         diagnostics = replace(
             result.diagnostics,
             solve_time=result.diagnostics.solve_time + done.seconds / max(problem.n_frames, 1),
