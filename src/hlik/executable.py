@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from hlik.criteria.angles import joint_difference
-from hlik.robot.dynamics import inverse_dynamics
+from hlik.robot.dynamics import inverse_dynamics, motion_rates
 from hlik.robot.floor import lowest_points
 from hlik.robot.model import Robot
 from hlik.trajectory import Trajectory
@@ -168,24 +168,20 @@ def joint_velocity(traj: Trajectory, robot: Robot) -> np.ndarray:
     """(T, n) each joint's speed into each frame, rad/s (0 into the first: at rest before it), the
     differencing of every check here (unlimited joints by their shorter way round)."""
     q, dt = traj.q, traj.period
-    steps = joint_difference(q[1:], q[:-1], np.isinf(robot.lower))  # (T-1, n)
-    return np.vstack([np.zeros((1, robot.dof)), steps / dt])
+    return motion_rates(joint_difference(q[1:], q[:-1], np.isinf(robot.lower)), dt, len(q))[0]
 
 
 def controller_checks(traj: Trajectory, robot: Robot) -> ControllerChecks:
     """The :class:`ControllerChecks` of ``traj`` on ``robot``."""
     q, dt = traj.q, traj.period
     unlimited = np.isinf(robot.lower)
-    velocity = joint_velocity(traj, robot)
-    accel = np.zeros_like(q)
-    accel[:-1] = np.diff(velocity, axis=0) / dt
+    velocity, central, accel = motion_rates(joint_difference(q[1:], q[:-1], unlimited), dt, len(q))
     jerks = np.zeros_like(q)  # (T, n): into each frame's acceleration from the last
     if len(q) > 2:
         jerks[1:-1] = np.diff(accel[:-1], axis=0) / dt
     jerk = np.max(np.abs(jerks), axis=1, initial=0.0)
     limits = robot.jerk_limit if np.any(np.isfinite(robot.jerk_limit)) else np.ones(robot.dof)
     jerk_joint = robot.joint_names[int(np.argmax(np.max(np.abs(jerks), axis=0) / limits))] if q.size else ""
-    central = 0.5 * (velocity + np.vstack([velocity[1:], velocity[-1:]]))
     torque = inverse_dynamics(robot, q, central, accel)
     with np.errstate(invalid="ignore"):
         acc_ratio = np.max(np.abs(accel) / robot.acceleration_limit, axis=1, initial=0.0)

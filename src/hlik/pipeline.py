@@ -32,10 +32,10 @@ from hlik.run_spec import RunSpec
 from hlik.solvers import SPECS, get_solver
 from hlik.solvers.stack_file import Stack
 from hlik.trajectory import Trajectory
+from hlik.util.errors import SettingsError
 
 if TYPE_CHECKING:
     from hlik.solvers.whole_take import Refinement
-from hlik.util.errors import SettingsError
 
 # (stage, done, total): what the run is doing, and how far (None, None: no count)
 Progress = Callable[[str, int | None, int | None], None]

@@ -155,9 +155,10 @@ class RunSpec:
                 f"{stack.scenario} pose, retargeted frame by frame only"
             )
         if self.whole_take and not solver.tracks_targets:
+            trackers = ", ".join(n for n, s in SPECS.items() if s.tracks_targets)
             raise SettingsError(
                 f"--whole-take starts from a motion within the limits; {self.solver} maps the joints "
-                "and keeps none: choose --solver jv, qp, slsqp or mink"
+                f"and keeps none: choose --solver {trackers}"
             )
         if self.metric is not None:
             from hlik.criteria.unified import load_metric  # NumPy: after the quick checks

@@ -1,5 +1,6 @@
 """The robots' inverse dynamics as the controller check (:mod:`hlik.executable`) and the
-whole-take stage (:mod:`hlik.solvers.whole_take`) compute them: ``mujoco.mj_inverse`` with contacts,
+whole-take stage (:mod:`hlik.solvers.whole_take`) compute them, from the same finite differences
+(:func:`motion_rates`): ``mujoco.mj_inverse`` with contacts,
 joint limits and passive forces off (the models' joint damping is a simulation setting, not a
 measured friction: :mod:`hlik.executable`)."""
 
@@ -33,3 +34,15 @@ def inverse_dynamics(robot: Robot, q: np.ndarray, qvel: np.ndarray, qacc: np.nda
         mujoco.mj_inverse(model, data)
         out[k] = data.qfrc_inverse
     return out
+
+
+def motion_rates(steps: np.ndarray, dt: float, frames: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The finite differences of a motion of ``frames`` frames from its steps (T - 1, n), rad, at
+    the frame period ``dt``, s: the velocity into each frame (T, n; 0 into the first: at rest
+    before it), the central velocity at each frame (T, n; the last frame's the velocity into it)
+    and the acceleration ``(v_t+1 - v_t) / dt`` (T, n; 0 at the last frame); rad/s, rad/s^2."""
+    velocity = np.vstack([np.zeros((1, steps.shape[1])), steps / dt])
+    accel = np.zeros((frames, steps.shape[1]))
+    accel[:-1] = np.diff(velocity, axis=0) / dt
+    central = 0.5 * (velocity + np.vstack([velocity[1:], velocity[-1:]]))
+    return velocity, central, accel

@@ -48,7 +48,7 @@ import scipy.sparse as sp
 
 from hlik.problem.problem import Problem
 from hlik.robot.collision import CollisionPairs, collision_pairs, near_pairs
-from hlik.robot.dynamics import inverse_model
+from hlik.robot.dynamics import inverse_model, motion_rates
 from hlik.robot.model import SIDES, Robot
 from hlik.solvers.base import Solver, SolverResult
 from hlik.solvers.catalog import WHOLE_TAKE
@@ -68,20 +68,20 @@ class WholeTakeSettings:
     Attributes:
         iterations: Linearisations (QP solves) at most.
         position_band: Each hand within this of its target per axis, m (or as far as the run left it).
-        trunk_pull: The same pull on the extra (trunk) joints (ARMAR-III's hip), which would else
-            turn the hands with the body.
-        position_cost: Weight per m^2 of each hand's distance from its target (inside the band: the
-            hands as near as the rest allows).
         orientation_band: A hand turned less than this from its target costs nothing, rad; beyond
             it, the square of the angle beyond.
-        smoothness: Weight of the squared second differences of the change made to the run
-            (rad^2 per rad^2), so that the change adds no jerk.
         pull: Weight per rad^2 of each joint's distance to the frame-by-frame solution, against the
             hands' orientation errors (rad^2).
+        trunk_pull: The same pull on the extra (trunk) joints (ARMAR-III's hip), which would else
+            turn the hands with the body.
+        position_cost: Weight per m^2 of each hand's distance from its target (within the band's
+            corner; linear beyond it: the hands as near as the rest allows).
+        smoothness: Weight of the squared second differences of the change made to the run
+            (rad^2 per rad^2), so that the change adds no jerk.
         trust_region: The first iteration's largest joint step, rad (grown 1.5x on a kept step to
             ``max_trust_region``, halved on a rejected one).
         max_trust_region: Largest joint step of an iteration, rad.
-        stop_margin: Kept from every position stop, rad.
+        stop_margin: Kept from every position stop, rad (at most a fifth of a joint's range).
         headroom: Share of the speed, acceleration and jerk limits the rows allow.
         torque_fraction: Share of the effort limits the linearised torque rows allow.
         torque_watch: Only torques above this share of their efforts get rows (fewer rows, a faster
@@ -111,7 +111,7 @@ class WholeTakeSettings:
     tolerance: float = 1e-4
 
 
-def settings_for(solver_settings: object | None, **changes) -> WholeTakeSettings:
+def settings_for(solver_settings: object | None) -> WholeTakeSettings:
     """The stage's settings keeping a solver's limits: its ``stop_margin``, ``torque_fraction`` and
     ``collision_margin`` where its settings have them (JV, QP, SLSQP, mink), the defaults else."""
     own = {
@@ -119,7 +119,7 @@ def settings_for(solver_settings: object | None, **changes) -> WholeTakeSettings
         for name in ("stop_margin", "torque_fraction", "collision_margin")
         if hasattr(solver_settings, name)
     }
-    return replace(WholeTakeSettings(), **{**own, **changes})
+    return replace(WholeTakeSettings(), **own)
 
 
 @dataclass(frozen=True, eq=False)
@@ -191,12 +191,7 @@ class Take:
         their derivatives by q_t-1, q_t and q_t+1."""
         model, data, dt = self.inverse, self.inverse_data, self.dt
         t_n, n = q.shape
-        before = np.vstack([q[:1], q[:-1]])  # q_t-1; the first frame's is itself (at rest)
-        after = np.vstack([q[1:], q[-1:]])  # q_t+1; the last frame's is itself (no acceleration)
-        qvel = (after - before) / (2.0 * dt)
-        qvel[-1] = (q[-1] - before[-1]) / dt
-        qacc = (after - 2.0 * q + before) / (dt * dt)
-        qacc[-1] = 0.0
+        _, qvel, qacc = motion_rates(np.diff(q, axis=0), dt, t_n)  # unlimited joints unwrapped
         torque, jac = np.empty((t_n, n)), np.zeros((t_n, 3, n, n))
         dfdq, dfdv, dfda = (np.empty((model.nv, model.nv)) for _ in range(3))
         for t in range(t_n):
@@ -252,6 +247,34 @@ def difference_rows(t_n: int, order: int) -> sp.csr_matrix:
     return sp.vstack([sp.csr_matrix((1, t_n)), jerk[:-1]]).tocsr()
 
 
+@dataclass(frozen=True, eq=False)
+class _Fixed:
+    """What stays the same over a take's iterations.
+
+    Attributes:
+        run: (T, n) the solver's motion (unlimited joints unwrapped), rad.
+        pull: (n,) each joint's pull toward it, per rad^2.
+        lower, upper: (n,) the stops less the margin, rad.
+        rates: The speed, acceleration and jerk rows on the flattened motion (T n,) and their
+            bounds, rad per frame (those with a finite limit).
+        effort: (n,) the effort limits, N m; ``limited`` the joints with one.
+        band: (T, 2, 3) each hand's box per axis, m: the band, or as far off as the run left it.
+        reach: (T, 2) how far off each hand may end before the merit's penalty, m.
+        smooth: (T n, T n) the smoothness term's Hessian on the change to the run.
+    """
+
+    run: np.ndarray
+    pull: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
+    rates: list[tuple[sp.csr_matrix, np.ndarray]]
+    effort: np.ndarray
+    limited: np.ndarray
+    band: np.ndarray
+    reach: np.ndarray
+    smooth: sp.csr_matrix
+
+
 def refine(problem: Problem, q: np.ndarray, settings: WholeTakeSettings | None = None) -> Refinement:
     """The motion ``q`` (T, n) of ``problem`` improved over the whole take (module docstring).
 
@@ -261,45 +284,23 @@ def refine(problem: Problem, q: np.ndarray, settings: WholeTakeSettings | None =
     start = time.perf_counter()
     robot = problem.robot
     t_n, n = q.shape
-    targets = problem.targets
-    take = Take(robot, targets.pos, targets.rot, problem.dt, s.collision_detect)
     if t_n < 2:
         return Refinement(q.copy(), 0, 0, (0.0, 0.0), time.perf_counter() - start)
-    inner = MotionLimits.of(robot, LimitSettings(stop_margin=s.stop_margin))  # a fifth of a range at most
-    lo, hi = inner.inner_lower, inner.inner_upper
+    take = Take(robot, problem.targets.pos, problem.targets.rot, problem.dt, s.collision_detect)
     unlimited = np.isinf(robot.lower)
     given = q
     q = q.copy()
     q[:, unlimited] = np.unwrap(q[:, unlimited], axis=0)  # a 2 pi jump is no step
     turns = q - given  # multiples of 2 pi, given back at the end
-    run = q.copy()
-    pull = np.full(n, s.pull)
-    pull[[robot.joint_names.index(j) for j in robot.extra_joints]] = s.trunk_pull
-    eye = sp.identity(n, format="csr")
-    rates = [(1, robot.velocity_limit * problem.dt), (2, robot.acceleration_limit * problem.dt**2)]
-    rates.append((3, robot.jerk_limit * problem.dt**3))
-    diffs = [
-        (sp.kron(difference_rows(t_n, k), eye).tocsr(), np.tile(limit * s.headroom, t_n - 1))
-        for k, limit in rates
-        if np.any(np.isfinite(limit))
-    ]
-    effort = robot.effort_limit
-    limited = np.flatnonzero(np.isfinite(effort))
     lin = take.linearise(q)
-    # each axis of each hand within the band or as far off as the run left it; the merit's sphere
-    # holds that box with a band more for the curvature the rows do not see (a step of the trust
-    # region on every joint bends a hand's path by millimetres), added, not scaled: a hand the
-    # solver left 4 cm off may not end 6 cm off
-    band = np.maximum(np.abs(lin.position), s.position_band)  # (T, 2, 3)
-    reach = np.linalg.norm(band, axis=-1) + s.position_band
-    cost = _merit(lin, q, run, reach, pull, s)
-    first = cost
+    fixed = _fixed(robot, q, lin, problem.dt, s)
+    cost = first = _merit(lin, q, fixed, s)
     region, iterations, accepted = s.trust_region, 0, 0
     if cost == 0.0:  # every hand within its bands already
         region = 0.0
     while iterations < s.iterations and region >= s.min_trust_region:
         iterations += 1
-        step = _step(lin, q, run, pull, lo, hi, diffs, effort, limited, band, region, s)
+        step = _step(lin, q, fixed, region, s)
         if step is None:
             region /= 2.0
             continue
@@ -307,9 +308,10 @@ def refine(problem: Problem, q: np.ndarray, settings: WholeTakeSettings | None =
         at_trial = take.linearise(trial)
         # no torque above the fraction of its effort (or above where it was), no pair closer than
         # half the margin (or than it was)
-        allowed = np.maximum(s.torque_fraction * effort[limited], np.abs(lin.torque[:, limited]))
+        limited = fixed.limited
+        allowed = np.maximum(s.torque_fraction * fixed.effort[limited], np.abs(lin.torque[:, limited]))
         strong = np.all(np.abs(at_trial.torque[:, limited]) <= allowed + 1e-9)
-        trial_cost = _merit(at_trial, trial, run, reach, pull, s)
+        trial_cost = _merit(at_trial, trial, fixed, s)
         safe = strong and at_trial.closest >= min(0.5 * s.collision_margin, lin.closest)
         if safe and trial_cost < cost:
             settled = cost - trial_cost < s.tolerance * cost
@@ -322,58 +324,75 @@ def refine(problem: Problem, q: np.ndarray, settings: WholeTakeSettings | None =
     return Refinement(q - turns, iterations, accepted, (first, cost), time.perf_counter() - start)
 
 
+def _fixed(robot: Robot, run: np.ndarray, lin: Linearisation, dt: float, s: WholeTakeSettings) -> _Fixed:
+    """The :class:`_Fixed` of the motion ``run`` (T, n), linearised in ``lin``."""
+    t_n, n = run.shape
+    inner = MotionLimits.of(robot, LimitSettings(stop_margin=s.stop_margin))  # a fifth of a range at most
+    pull = np.full(n, s.pull)
+    pull[[robot.joint_names.index(j) for j in robot.extra_joints]] = s.trunk_pull
+    eye = sp.identity(n, format="csr")
+    limits = [robot.velocity_limit * dt, robot.acceleration_limit * dt**2, robot.jerk_limit * dt**3]
+    rates = [
+        (sp.kron(difference_rows(t_n, order), eye).tocsr(), np.tile(limit * s.headroom, t_n - 1))
+        for order, limit in enumerate(limits, start=1)
+        if np.any(np.isfinite(limit))
+    ]
+    # each axis of each hand within the band or as far off as the run left it; the merit's sphere
+    # holds that box with a band more for the curvature the rows do not see (a step of the trust
+    # region on every joint bends a hand's path by millimetres), added, not scaled: a hand the
+    # solver left 4 cm off may not end 6 cm off
+    band = np.maximum(np.abs(lin.position), s.position_band)  # (T, 2, 3)
+    second = sp.kron(sp.diags([1.0, -2.0, 1.0], [0, 1, 2], shape=(t_n - 2, t_n)), eye)
+    return _Fixed(
+        run=run.copy(),
+        pull=pull,
+        lower=inner.inner_lower,
+        upper=inner.inner_upper,
+        rates=rates,
+        effort=robot.effort_limit,
+        limited=np.flatnonzero(np.isfinite(robot.effort_limit)),
+        band=band,
+        reach=np.linalg.norm(band, axis=-1) + s.position_band,
+        smooth=(s.smoothness * (second.T @ second)).tocsr(),
+    )
+
+
 def _near(s: WholeTakeSettings) -> float:
     """The distance, m, beyond which a hand's distance from its target costs linearly, not
     quadratically (the corner of its band)."""
     return math.sqrt(3.0) * s.position_band
 
 
-def _merit(
-    lin: Linearisation,
-    q: np.ndarray,
-    run: np.ndarray,
-    reach: np.ndarray,
-    pull: np.ndarray,
-    s: WholeTakeSettings,
-) -> float:
-    beyond = np.maximum(np.linalg.norm(lin.position, axis=-1) - reach, 0.0)
+def _merit(lin: Linearisation, q: np.ndarray, fixed: _Fixed, s: WholeTakeSettings) -> float:
     dist, near = np.linalg.norm(lin.position, axis=-1), _near(s)
+    beyond = np.maximum(dist - fixed.reach, 0.0)
     off = s.position_cost * np.sum(np.where(dist <= near, dist**2, 2.0 * near * dist - near**2))
     turned = np.maximum(np.linalg.norm(lin.orientation, axis=-1) - s.orientation_band, 0.0)
-    change = q - run
+    change = q - fixed.run
     return float(
         off
         + np.sum(turned**2)
-        + np.sum(pull * change**2)
+        + np.sum(fixed.pull * change**2)
         + s.smoothness * np.sum(np.diff(change, 2, axis=0) ** 2)
         + PENALTY * np.sum(beyond**2)
     )
 
 
 def _step(
-    lin: Linearisation,
-    q: np.ndarray,
-    run: np.ndarray,
-    pull: np.ndarray,
-    lo: np.ndarray,
-    hi: np.ndarray,
-    diffs: list[tuple[sp.csr_matrix, np.ndarray]],
-    effort: np.ndarray,
-    limited: np.ndarray,
-    band: np.ndarray,
-    region: float,
-    s: WholeTakeSettings,
+    lin: Linearisation, q: np.ndarray, fixed: _Fixed, region: float, s: WholeTakeSettings
 ) -> np.ndarray | None:
-    """(T, n) the QP's step from ``q``, or None where it has no solution."""
+    """(T, n) the QP's step from ``q`` within the trust ``region``, rad, or None where it has no
+    solution."""
     t_n, n = q.shape
     jo, jp = lin.orientation_jacobian, lin.position_jacobian
+    change = q - fixed.run
     # each hand turned beyond the band: the least squares of its rotation vector shortened by the band
     angle = np.linalg.norm(lin.orientation, axis=-1, keepdims=True)  # (T, 2, 1)
     weight = (angle > s.orientation_band).astype(float)
     residual = lin.orientation * (1.0 - s.orientation_band / np.maximum(angle, 1e-12)) * weight
     jw = jo * weight[..., None]
-    hessian = np.einsum("tacn,tacm->tnm", jw, jw) + np.diag(pull + _EPS)
-    gradient = np.einsum("tacn,tac->tn", jw, residual) + pull * (q - run)
+    hessian = np.einsum("tacn,tacm->tnm", jw, jw) + np.diag(fixed.pull + _EPS)
+    gradient = np.einsum("tacn,tac->tn", jw, residual) + fixed.pull * change
     if s.position_cost > 0.0:
         # the hands as near their targets as the rest allows: the square of the distance within
         # the band's corner, beyond it linear (Huber; as reweighted least squares), so that a hand
@@ -383,8 +402,6 @@ def _step(
         jn = jp * weight[..., None, None]
         hessian += np.einsum("tacn,tacm->tnm", jn, jn)
         gradient += np.einsum("tacn,tac->tn", jn, lin.position * weight[..., None])
-    smooth = sp.kron(sp.diags([1.0, -2.0, 1.0], [0, 1, 2], shape=(t_n - 2, t_n)), sp.identity(n))
-    smooth_h = s.smoothness * (smooth.T @ smooth)
     rows, upper = [], []
 
     def keep(a: sp.spmatrix, value: np.ndarray, lower: np.ndarray, high: np.ndarray) -> None:
@@ -393,41 +410,45 @@ def _step(
         upper.extend([np.maximum(high - value, 0.0), np.maximum(value - lower, 0.0)])
 
     flat = q.reshape(-1)
-    for a, bound in diffs:
+    for a, bound in fixed.rates:
         finite = np.isfinite(bound)
         keep(a[finite], a[finite] @ flat, -bound[finite], bound[finite])
     hands = sp.block_diag(list(jp.reshape(t_n, 6, n)), format="csr")
-    keep(hands, lin.position.reshape(-1), -band.reshape(-1), band.reshape(-1))
+    keep(hands, lin.position.reshape(-1), -fixed.band.reshape(-1), fixed.band.reshape(-1))
+    limited = fixed.limited
     if len(limited):
         # rows for the torques above torque_watch of their efforts only (a step that takes another
         # over its effort is refused by refine)
-        allowed = np.tile(s.torque_fraction * effort[limited], t_n)
+        effort = np.tile(fixed.effort[limited], t_n)
         value = lin.torque[:, limited].reshape(-1)
-        watched = np.abs(value) > s.torque_watch * np.tile(effort[limited], t_n)
+        watched = np.abs(value) > s.torque_watch * effort
         torque_rows = _torque_rows(lin.torque_jacobian[:, :, limited], t_n, n)[watched]
-        keep(torque_rows, value[watched], -allowed[watched], allowed[watched])
+        allowed = s.torque_fraction * effort[watched]
+        keep(torque_rows, value[watched], -allowed, allowed)
     near = [(t, d, g) for t, (d, g) in enumerate(lin.pairs) if len(d)]
-    if near:
+    if near:  # each near pair's distance d + g dq_t at least the margin (or d)
         frames = np.concatenate([np.full(len(d), t) for t, d, _ in near])
-        placed = _place_rows(sp.block_diag([g for _, _, g in near], format="csr"), frames, t_n, n)
+        gradients = np.concatenate([g for _, _, g in near])  # (k, n)
+        k = len(frames)
+        cols = (frames[:, None] * n + np.arange(n)).reshape(-1)
+        placed = sp.csr_matrix(
+            (gradients.reshape(-1), (np.repeat(np.arange(k), n), cols)), shape=(k, t_n * n)
+        )
         dist = np.concatenate([d for _, d, _ in near])
         rows.append(-placed)
         upper.append(np.maximum(dist - np.minimum(s.collision_margin, dist), 0.0))
-    g_mat = sp.vstack(rows).tocsc()
-    h = np.concatenate(upper)
-    box_lo = np.maximum(np.tile(lo, t_n) - flat, -region)
-    box_hi = np.minimum(np.tile(hi, t_n) - flat, region)
-    box_lo, box_hi = np.minimum(box_lo, 0.0), np.maximum(box_hi, 0.0)
+    box_lo = np.minimum(np.maximum(np.tile(fixed.lower, t_n) - flat, -region), 0.0)
+    box_hi = np.maximum(np.minimum(np.tile(fixed.upper, t_n) - flat, region), 0.0)
     # the take ends as the solver ended it: its last two frames, from which it can brake before
     # the stops' margins (the solvers keep that; the rows here do not)
     box_lo[-2 * n :], box_hi[-2 * n :] = 0.0, 0.0
     with warnings.catch_warnings(record=True) as said:  # Clarabel short of its tolerances
         warnings.simplefilter("always")
         x = qpsolvers.solve_qp(
-            (sp.block_diag(list(hessian)) + smooth_h).tocsc(),
-            gradient.reshape(-1) + smooth_h @ (q - run).reshape(-1),
-            g_mat,
-            h,
+            (sp.block_diag(list(hessian)) + fixed.smooth).tocsc(),
+            gradient.reshape(-1) + fixed.smooth @ change.reshape(-1),
+            sp.vstack(rows).tocsc(),
+            np.concatenate(upper),
             lb=box_lo,
             ub=box_hi,
             solver="clarabel",
@@ -435,14 +456,6 @@ def _step(
     if said or x is None or not np.all(np.isfinite(x)):  # the rows kept only roughly: no step
         return None
     return np.clip(x, box_lo, box_hi).reshape(t_n, n)
-
-
-def _place_rows(blocks: sp.csr_matrix, frames: np.ndarray, t_n: int, n: int) -> sp.csr_matrix:
-    """(k, T n) the rows ``blocks`` (k, k n) of block-diagonal (1, n) gradients moved to their
-    frames' columns."""
-    coo = blocks.tocoo()
-    cols = frames[coo.row] * n + coo.col % n
-    return sp.csr_matrix((coo.data, (coo.row, cols)), shape=(blocks.shape[0], t_n * n))
 
 
 def _torque_rows(jac: np.ndarray, t_n: int, n: int) -> sp.csr_matrix:
