@@ -107,7 +107,10 @@ def test_hands_through_each_other_are_a_self_contact(g1, bare_g1):
     q = _hands_together(g1)
     pairs = _hand_pairs(g1, q)
     assert pairs and min(d for _, _, d in pairs) < -0.02  # 2 cm and more into each other
-    assert not _hand_pairs(bare_g1, q) and not self_contacts(bare_g1, q)  # unseen before
+    # unseen before: no contact of a hand (MuJoCo 3.17 finds this pose's right elbow grazing the
+    # torso by 3 mm, an earlier release did not; the arms' geoms are the G1's, not this test's)
+    assert not _hand_pairs(bare_g1, q)
+    assert not [c for c in self_contacts(bare_g1, q) if c[0] in HANDS or c[1] in HANDS]
     assert not self_contacts(g1, g1.home)
 
 

@@ -93,7 +93,7 @@ def test_the_whole_take_turns_the_hands_toward_their_targets_within_every_limit(
         _beyond(ev.fori, settings.orientation_band),
     )
     assert after < 0.67 * before, (before, after)
-    # and stay on their positions: within the merit's sphere about the band or the run's own error
+    # and stay on their positions: within the sphere about the band or the run's own error
     band = np.maximum(np.abs(plain.trajectory.tcp_pos - plain.trajectory.targets.pos), settings.position_band)
     assert np.all(ev.fpos <= np.linalg.norm(band, axis=-1) + settings.position_band + 1e-9)
     # what a controller checks, by MuJoCo (mj_inverse, distances), not by the rows
@@ -135,9 +135,81 @@ def test_the_stage_keeps_the_solvers_own_limits():
     from hlik.solvers.settings import QPSettings
     from hlik.solvers.whole_take import settings_for
 
-    s = settings_for(QPSettings(stop_margin=0.17, torque_fraction=0.5, collision_margin=0.03))
+    qp = QPSettings(stop_margin=0.17, torque_fraction=0.5, collision_margin=0.03, criteria=("SYN", "HJA_r"))
+    s = settings_for(qp, WholeTakeSettings(pull=0.5))
     assert (s.stop_margin, s.torque_fraction, s.collision_margin) == (0.17, 0.5, 0.03)
+    assert s.criteria == ("SYN", "HJA_r") and s.gamma == qp.gamma and s.pull == 0.5
     assert settings_for(None) == WholeTakeSettings()
+
+
+def test_a_stacks_whole_take_table_sets_the_stage_per_robot(tmp_path):
+    from hlik.solvers.stack_file import load_stack
+
+    path = tmp_path / "mine.toml"
+    path.write_text(
+        'criteria = ["SYN"]\n[whole_take]\ncriterion_cost = 0.02\n'
+        "[whole_take.robot.dual_panda]\ncriterion_cost = 0.0\n"
+    )
+    stack = load_stack(path)
+    assert stack.settings("whole_take").criterion_cost == 0.02
+    assert stack.settings("whole_take", "armar3").criterion_cost == 0.02
+    assert stack.settings("whole_take", "dual_panda").criterion_cost == 0.0
+    for bad, says in (("pull = -1.0", "pull"), ("gamma = 1.0", "gamma"), ("headroom = 1.5", "headroom")):
+        path.write_text(f"[whole_take]\n{bad}\n")
+        with pytest.raises(SettingsError) as said:
+            load_stack(path)
+        assert str(said.value).startswith(str(path)) and "whole_take]" in str(said.value), said.value
+        assert says in str(said.value) and "\n" not in str(said.value)
+
+
+def test_the_stage_weighs_the_criteria_of_one_frames_pose_as_the_paper(peel_runs):
+    """Each criterion weighs gamma_i * criterion_cost / k; MJE and MIS, criteria of the motion, are
+    left to the smoothness term."""
+    from hlik.criteria.unified import gamma
+    from hlik.solvers.whole_take import criterion_terms
+
+    robot, plain, _ = peel_runs
+    problem = _problem(robot, plain, ("SYN", "HJA_r", "MJE", "MIS"))
+    s = WholeTakeSettings(criteria=("SYN", "HJA_r", "MJE", "MIS"), gamma={"HJA_r": 4.0}, criterion_cost=0.1)
+    terms = criterion_terms(problem, s)
+    assert [t.name for t, _ in terms] == ["SYN", "HJA_r"]
+    assert [w for _, w in terms] == pytest.approx([gamma("SYN") * 0.1 / 4, 4.0 * 0.1 / 4])
+
+
+def _problem(robot, result, criteria):
+    from hlik.problem.problem import build_problem
+
+    traj = result.trajectory
+    return build_problem(result.motion, robot, traj.placement, result.learned, criteria)
+
+
+def _criteria_cost(problem, q, s):
+    from hlik.solvers.whole_take import criterion_terms
+
+    take = Take(robot := problem.robot, problem.targets.pos, problem.targets.rot, problem.dt, 0.05)
+    take = Take(robot, take.pos, take.rot, take.dt, 0.05, criterion_terms(problem, s), problem.reference)
+    return sum(w * float(np.sum(e**2)) for w, e, _ in take.criteria(q))
+
+
+def test_the_criteria_shape_the_arm_within_the_hands_bands(peel_runs):
+    """Hands first, then the criteria: with the run's criteria in its objective the stage ends with
+    them lower than without, while each hand stays within its box (the band, or as far off as the
+    run left it, with a band more for curvature), as without."""
+    robot, plain, _ = peel_runs
+    problem = _problem(robot, plain, ("SYN", "HJA_r"))
+    q = plain.trajectory.q
+    with_criteria = WholeTakeSettings(criteria=("SYN", "HJA_r"), criterion_cost=0.05)
+    without = replace(with_criteria, criterion_cost=0.0)
+    shaped, plain_stage = refine(problem, q, with_criteria), refine(problem, q, without)
+    assert shaped.accepted >= 1
+    cost = [_criteria_cost(problem, x, with_criteria) for x in (q, shaped.q, plain_stage.q)]
+    assert cost[1] < cost[2] and cost[1] < cost[0], cost
+    band = np.maximum(np.abs(plain.trajectory.tcp_pos - problem.targets.pos), with_criteria.position_band)
+    reach = np.linalg.norm(band, axis=-1) + with_criteria.position_band + 1e-9
+    from hlik.robot.state import robot_state
+
+    tcp = robot_state(robot, shaped.q).sites[:, :, 3]
+    assert np.all(np.linalg.norm(tcp - problem.targets.pos, axis=-1) <= reach)
 
 
 def test_a_wider_stop_margin_of_the_stack_holds_after_the_stage(takes):
@@ -173,3 +245,29 @@ def test_hands_out_of_reach_are_not_turned_further_off_for_their_positions():
     before, after = np.degrees(plain.evaluation.fori), np.degrees(whole.evaluation.fori)
     assert np.median(after[far]) < np.median(before[far])  # 34 -> 18 deg
     assert np.median(after) < np.median(before)
+
+
+def test_the_trunk_held_upright_leans_less_with_the_hands_in_their_boxes(takes):
+    """ARMAR-III's hip toward home at ``trunk_upright``: the stage ends with the trunk nearer
+    upright than without, the hands within their boxes all the same (and the term only where a
+    robot has extra joints)."""
+    from hlik.solvers.whole_take import criterion_terms
+
+    (take,) = [p for p in takes if p.name.startswith("Close_")]
+    plain = run(RunSpec(motion=take, robot="armar3", criteria=("SYN",), span=(1.0, 1.6)))
+    robot = plain.robot
+    problem = _problem(robot, plain, ())
+    upright = WholeTakeSettings(trunk_upright=4.0)
+    assert [t.name for t, _ in criterion_terms(problem, upright)] == ["trunk"]
+    q = plain.trajectory.q
+    hip = [robot.joint_names.index(j) for j in robot.extra_joints]
+    held, free = refine(problem, q, upright), refine(problem, q, WholeTakeSettings())
+    lean = [float(np.sum((x[:, hip] - robot.home[hip]) ** 2)) for x in (held.q, free.q)]
+    assert held.accepted >= 1 and lean[0] < lean[1], lean
+    band = np.maximum(np.abs(plain.trajectory.tcp_pos - problem.targets.pos), upright.position_band)
+    from hlik.robot.state import robot_state
+
+    tcp = robot_state(robot, held.q).sites[:, :, 3]
+    assert np.all(np.linalg.norm(tcp - problem.targets.pos, axis=-1) <= np.linalg.norm(band, axis=-1) + 0.003)
+    panda = load_robot("dual_panda")
+    assert criterion_terms(replace(problem, robot=panda), upright) == []

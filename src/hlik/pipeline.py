@@ -30,7 +30,7 @@ from hlik.robot.model import Robot, load_robot
 from hlik.robot.reachability import reachability_map
 from hlik.run_spec import RunSpec
 from hlik.solvers import SPECS, get_solver
-from hlik.solvers.stack_file import Stack
+from hlik.solvers.stack_file import STAGE_TABLE, Stack
 from hlik.trajectory import Trajectory
 from hlik.util.errors import SettingsError
 
@@ -190,7 +190,8 @@ def run(
         from hlik.solvers.whole_take import WholeTake, settings_for
 
         announce = lambda stage: _say(progress, stage)  # noqa: E731
-        solver = WholeTake(solver, settings_for(settings), announce=announce, report=refined.append)
+        stage_settings = settings_for(settings, stack.settings(STAGE_TABLE, robot.name))
+        solver = WholeTake(solver, stage_settings, announce=announce, report=refined.append)
     traj = retarget(motion, robot, solver, placement, learned)
     traj = replace(traj, scenario=scenario)  # what hlik evaluate scores it by, unless told
     wall, cpu = time.perf_counter() - wall, time.process_time() - cpu

@@ -55,7 +55,7 @@ def write_bvh(motion: HumanMotion, path: str | Path, rate: float = 30.0) -> Path
     period = float(np.median(np.diff(motion.times))) if motion.n_frames > 1 else 1.0 / 30.0
     lines += ["MOTION", f"Frames: {motion.n_frames}", f"Frame Time: {period:.7f}"]
     values = np.concatenate([local[n] for n in order], axis=1)  # (T, 3 per joint)
-    lines += [" ".join(f"{v:.4f}" for v in row) for row in values]
+    lines += [_numbers(row) for row in values]
     with atomic_path(path) as tmp:
         tmp.write_text("\n".join(lines) + "\n", encoding="ascii")
     return path
@@ -65,10 +65,16 @@ def _joint(name: str, local: dict[str, np.ndarray], parents: dict[str, str], dep
     """The HIERARCHY lines of ``name`` and its children; the first frame's offsets."""
     pad = "  " * depth
     kind = "ROOT" if depth == 0 else "JOINT"
-    offset = " ".join(f"{v:.4f}" for v in local[name][0])
+    offset = _numbers(local[name][0])
     lines = [f"{pad}{kind} {name}", f"{pad}{{", f"{pad}  OFFSET {offset}", f"{pad}  {_POSITION}"]
     for child in (c for c, p in parents.items() if p == name):
         lines += _joint(child, local, parents, depth + 1)
     if not any(p == name for p in parents.values()):
         lines += [f"{pad}  End Site", f"{pad}  {{", f"{pad}    OFFSET 0.0 0.0 0.0", f"{pad}  }}"]
     return lines + [f"{pad}}}"]
+
+
+def _numbers(values: np.ndarray) -> str:
+    """Values to 0.1 mm, a zero unsigned: the sign of a 1e-17 remainder of the kinematics is no part
+    of the file (it differed between MuJoCo releases)."""
+    return " ".join(f"{v:.4f}" for v in np.round(values, 4) + 0.0)

@@ -461,3 +461,82 @@ def _check_choices(settings: object, owner: str) -> None:
 
 def _is_real(value: object) -> bool:
     return isinstance(value, numbers.Real) and not isinstance(value, bool)
+
+
+@dataclass(frozen=True)
+class WholeTakeSettings:
+    """How :mod:`hlik.solvers.whole_take` optimises the whole take; SI units.
+
+    Attributes:
+        iterations: Linearisations (QP solves) at most.
+        position_band: Each hand within this of its target per axis, m (or as far as the run left it).
+        orientation_band: A hand turned less than this from its target costs nothing, rad; beyond
+            it, the square of the angle beyond.
+        pull: Weight per rad^2 of each joint's distance to the frame-by-frame solution, against the
+            hands' orientation errors (rad^2).
+        trunk_pull: The same pull on the extra (trunk) joints (ARMAR-III's hip), which would else
+            turn the hands with the body.
+        position_cost: Weight per m^2 of each hand's distance from its target (within the band's
+            corner; linear beyond it: the hands as near as the rest allows).
+        smoothness: Weight of the squared second differences of the change made to the run
+            (rad^2 per rad^2), so that the change adds no jerk.
+        trust_region: The first iteration's largest joint step, rad (grown 1.5x on a kept step to
+            ``max_trust_region``, halved on a rejected one).
+        max_trust_region: Largest joint step of an iteration, rad.
+        stop_margin: Kept from every position stop, rad (at most a fifth of a joint's range).
+        headroom: Share of the speed, acceleration and jerk limits the rows allow.
+        torque_fraction: Share of the effort limits the linearised torque rows allow.
+        torque_watch: Only torques above this share of their efforts get rows (fewer rows, a faster
+            QP; a step that takes another over its effort is refused).
+        collision_margin: Least distance between collision geoms, m.
+        collision_detect: Pairs closer than this at the linearisation get a row, m.
+        min_trust_region: Stop once the trust region is below this, rad.
+        tolerance: Stop once a kept step lowers the merit by less than this share of it.
+        criteria: The human-likeness criteria the solver added (paper names), here evaluated
+            again: each of one frame's pose weighs ``gamma_i * criterion_cost / len(criteria)``
+            per squared residual.
+        gamma: Criterion name -> gamma_i, over Table II's (the solver's own).
+        criterion_cost: The criteria's weight against the hands' orientation beyond the band
+            (rad^2).
+        trunk_upright: Weight per rad^2 of the extra (trunk) joints' distance from home
+            (:class:`~hlik.criteria.joints.TrunkUpright`, the QP's ``trunk_cost`` term): the trunk
+            as upright as the hands allow (0: none).
+    """
+
+    iterations: int = 20
+    position_band: float = 0.003
+    orientation_band: float = math.radians(2.0)
+    pull: float = 0.03
+    trunk_pull: float = 1.0
+    position_cost: float = 100.0
+    smoothness: float = 1e4
+    trust_region: float = math.radians(3.0)
+    max_trust_region: float = math.radians(30.0)
+    stop_margin: float = STOP_MARGIN
+    headroom: float = 0.99
+    torque_fraction: float = 0.9
+    torque_watch: float = 0.5
+    collision_margin: float = 0.01
+    collision_detect: float = 0.05
+    min_trust_region: float = 1e-4
+    tolerance: float = 1e-4
+    criteria: tuple[str, ...] = ()
+    gamma: Mapping[str, float] = field(default_factory=dict)
+    criterion_cost: float = 0.0125
+    trunk_upright: float = 0.0
+
+    def __post_init__(self):
+        check_settings(
+            self,
+            at_least_zero=(
+                "position_band",
+                "orientation_band",
+                "pull",
+                "trunk_pull",
+                "smoothness",
+                "trunk_upright",
+            ),
+            positive=("trust_region", "max_trust_region", "min_trust_region", "tolerance"),
+            fractions=("headroom", "torque_watch"),
+            counts=("iterations",),
+        )

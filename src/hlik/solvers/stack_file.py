@@ -4,7 +4,9 @@ A stack file names the scenario (``pose``: both TCPs follow the hands; ``relativ
 of the hands), the criteria to add, optionally a ``[gamma]`` table overriding a criterion's Table II
 gamma, and one table of settings per solver (``[qp]``, ``[jv]``, ``[slsqp]``, the fields of that
 solver's settings class; a ``[qp.gamma]`` table overrides ``[gamma]`` for that solver alone). Each
-added criterion weighs ``gamma_i * criterion weight / len(criteria)``, as in the paper.
+added criterion weighs ``gamma_i * criterion weight / len(criteria)``, as in the paper. A
+``[whole_take]`` table sets the whole-take stage's
+(:class:`~hlik.solvers.settings.WholeTakeSettings`; its criteria and gamma are the solver's).
 """
 
 from __future__ import annotations
@@ -20,12 +22,15 @@ from types import MappingProxyType
 from hlik.criteria import registry
 from hlik.robot.files import available_robots
 from hlik.solvers.bounds import MAX_WEIGHT
+from hlik.solvers.settings import WholeTakeSettings
 from hlik.util.errors import SettingsError
 from hlik.util.paths import tasks_dir
 from hlik.util.tomlfile import did_you_mean, read_toml, unknown_key
 
 SCENARIOS = ("pose", "relative")
 SOLVER_TABLES = ("qp", "jv", "slsqp", "mink")
+STAGE_TABLE = "whole_take"  # the whole-take stage after any of them
+TABLES = (*SOLVER_TABLES, STAGE_TABLE)
 ROBOT_TABLE = "robot"  # [qp.robot.armar6]: that robot's settings over [qp]'s
 
 
@@ -63,8 +68,9 @@ class Stack:
         return dataclasses.replace(self, criteria=tuple(criteria))
 
     def settings(self, solver: str, robot: str | None = None):
-        """The settings object of ``solver`` (``qp``, ``jv``, ``slsqp``) for this stack; with
-        ``robot`` (a robot's ``name``), its ``[<solver>.robot.<name>]`` table over the solver's."""
+        """The settings object of ``solver`` (``qp``, ``jv``, ``slsqp``, ``mink``, or the
+        ``whole_take`` stage) for this stack; with ``robot`` (a robot's ``name``), its
+        ``[<solver>.robot.<name>]`` table over the solver's."""
         cls = settings_class(solver)
         # [mink] is the QP on mink: it starts from the [qp] table
         layers = ("qp", solver) if solver == "mink" else (solver,)
@@ -73,6 +79,8 @@ class Stack:
             table |= self.solvers.get(s, {})
         for s in layers:  # the robot's own values over every solver table's
             table |= self.robots.get(s, {}).get(robot, {}) if robot is not None else {}
+        if solver == STAGE_TABLE:  # its criteria and gamma are the solver's (settings_for)
+            return cls(**table)
         solver_gamma: Mapping[str, float] = table.pop("gamma", {})  # type: ignore[assignment]
         gamma = MappingProxyType({**cls().gamma, **self.gamma, **solver_gamma})  # onto the solver's own
         return cls(criteria=self.criteria, scenario=self.scenario, gamma=gamma, **table)
@@ -99,8 +107,12 @@ class Stack:
 
 
 def settings_class(solver: str) -> type:
-    """The frozen settings dataclass of a solver (:class:`~hlik.solvers.settings.SolverSpec`)."""
+    """The frozen settings dataclass of a solver (:class:`~hlik.solvers.settings.SolverSpec`), or
+    the whole-take stage's."""
     from hlik.solvers import SPECS
+
+    if solver == STAGE_TABLE:
+        return WholeTakeSettings
 
     spec = SPECS.get(solver)
     if spec is None or spec.settings is None:
@@ -127,9 +139,9 @@ def load_stack(path: str | Path) -> Stack:
 
 
 def _parse(raw: dict, path: Path) -> Stack:
-    allowed = {"name", "scenario", "criteria", "gamma", *SOLVER_TABLES}
+    allowed = {"name", "scenario", "criteria", "gamma", *TABLES}
     for key in sorted(set(raw) - allowed):  # a solver's setting written above the tables
-        owners = [f"[{s}]" for s in SOLVER_TABLES if key in _field_names(s)]
+        owners = [f"[{s}]" for s in TABLES if key in _field_names(s)]
         if owners:
             raise SettingsError(f"{path}: {key} is a solver's setting: put it in {' or '.join(owners)}")
     _check_keys(raw, allowed, path, "the top level")
@@ -142,12 +154,12 @@ def _parse(raw: dict, path: Path) -> Stack:
     check_criteria(tuple(criteria), path)
     gamma = _gamma(raw.get("gamma", {}), path, "gamma")
     solvers, robots = {}, {}
-    for solver in (s for s in SOLVER_TABLES if s in raw):
+    for solver in (s for s in TABLES if s in raw):
         table = raw[solver]
         if not isinstance(table, dict):
             raise SettingsError(f"{path}: [{solver}] must be a table")
         fields = {f.name: f for f in dataclasses.fields(settings_class(solver))}
-        allowed = set(fields) - {"criteria", "scenario"}
+        allowed = set(fields) - {"criteria", "scenario", *(("gamma",) if solver == STAGE_TABLE else ())}
         _check_keys(table, allowed | {ROBOT_TABLE}, path, f"[{solver}]")
         solvers[solver] = MappingProxyType(
             {k: _setting(solver, solver, k, v, fields, path) for k, v in table.items() if k != ROBOT_TABLE}
@@ -180,7 +192,7 @@ def _parse(raw: dict, path: Path) -> Stack:
         robots=MappingProxyType(robots),
         path=path,
     )
-    for solver in SOLVER_TABLES:  # refuse bad values now, naming the file, not when a solver starts
+    for solver in TABLES:  # refuse bad values now, naming the file, not when a solver starts
         owner = f"{settings_class(solver).__name__}."
         for robot in (None, *stack.robots.get(solver, {})):
             try:

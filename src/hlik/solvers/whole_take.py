@@ -12,6 +12,7 @@ for every frame's step dq:
     min  sum_t sum_hands |e_o (1 - band / |e_o|) + J_o dq_t|^2   (hands turned beyond the band)
          + position_cost |e_p + J_p dq_t|^2   (Huber: linear beyond the band's corner)
          + pull_j (q_t + dq_t - q_run,t)^2 + smoothness |D2 (q + dq - q_run)|^2
+         + sum_i w_i |e_i + J_i dq_t|^2   (the run's criteria, w_i = gamma_i criterion_cost / k)
     s.t. the stops less ``stop_margin``; |dq_t| <= the trust region; the last two frames kept;
          speed, acceleration (and jerk) limits as the controller check differences them
          (:mod:`hlik.executable`: at rest before the first frame), times ``headroom``;
@@ -19,14 +20,16 @@ for every frame's step dq:
          torques above ``torque_watch`` of their efforts within ``torque_fraction`` of them;
          each near pair at least ``collision_margin`` apart,
 
-with e_o the rotation vector of R R*^T (rad), e_p the TCP's offset (m). A row the start already
-breaks is moved to where the start is. ``pull`` keeps the posture the criteria shaped where the
-hands need nothing else (the criteria themselves are not evaluated again); the take ends in the
-solver's own last two frames, from which the solvers keep the joints able to brake before their
-stops' margins. A step is kept only if the merit (the objective's terms as they are at the step,
-and :data:`PENALTY` per m^2 a hand ends further off than its rows' box corner and a band more)
-falls, no torque ends above ``torque_fraction`` of its effort (or above where it was) and no pair
-closer than half the margin (or than it was); else the trust region halves. The rows are kept to
+with e_o the rotation vector of R R*^T (rad), e_p the TCP's offset (m), e_i a criterion's
+residual at frame t (:class:`~hlik.criteria.base.Term`; those of one frame's pose: the criteria of
+motion, MJE and MIS, are left to the smoothness term). A row the start already breaks is moved to
+where the start is. The hands come first: within their bands they cost nothing, and there the
+criteria the solver added shape the arm; ``pull`` keeps the rest of the posture. The take ends in
+the solver's own last two frames, from which the solvers keep the joints able to brake before their
+stops' margins. A step is kept only if the merit (the objective's terms as they are at the step)
+falls, no hand ends further off than its rows' box corner and a band more (the curvature the rows
+do not see), no torque ends above ``torque_fraction`` of its effort (or above where it was) and no
+pair closer than half the margin (or than it was); else the trust region halves. The rows are kept to
 Clarabel's tolerance; ``headroom`` leaves 1 % for it. A solver's motion that breaks a limit (JM)
 keeps breaking it no more than it did: :func:`hlik.run_spec.RunSpec.check` refuses JM.
 
@@ -38,7 +41,7 @@ from __future__ import annotations
 import math
 import time
 import warnings
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 
 import mujoco
@@ -46,80 +49,35 @@ import numpy as np
 import qpsolvers
 import scipy.sparse as sp
 
+from hlik.criteria import registry, unified
+from hlik.criteria.base import Term
+from hlik.criteria.joints import TrunkUpright
 from hlik.problem.problem import Problem
+from hlik.problem.reference import HumanReference, reference_sample
+from hlik.problem.targets import HandTargets
 from hlik.robot.collision import CollisionPairs, collision_pairs, near_pairs
 from hlik.robot.dynamics import inverse_model, motion_rates
 from hlik.robot.model import SIDES, Robot
+from hlik.robot.state import robot_state
 from hlik.solvers.base import Solver, SolverResult
 from hlik.solvers.catalog import WHOLE_TAKE
 from hlik.solvers.limits import MotionLimits
-from hlik.solvers.settings import STOP_MARGIN, LimitSettings
+from hlik.solvers.settings import LimitSettings, WholeTakeSettings
 from hlik.util.spatial import rotation_vector
 
-# rad^2 per m^2 in the merit: a hand 1 mm beyond its band costs as much as 0.3 rad off in one frame
-PENALTY = 1e5
 _EPS = 1e-6  # rad^2: damping of every step, so that the QP is strictly convex
 
 
-@dataclass(frozen=True)
-class WholeTakeSettings:
-    """How the whole take is optimised; SI units.
-
-    Attributes:
-        iterations: Linearisations (QP solves) at most.
-        position_band: Each hand within this of its target per axis, m (or as far as the run left it).
-        orientation_band: A hand turned less than this from its target costs nothing, rad; beyond
-            it, the square of the angle beyond.
-        pull: Weight per rad^2 of each joint's distance to the frame-by-frame solution, against the
-            hands' orientation errors (rad^2).
-        trunk_pull: The same pull on the extra (trunk) joints (ARMAR-III's hip), which would else
-            turn the hands with the body.
-        position_cost: Weight per m^2 of each hand's distance from its target (within the band's
-            corner; linear beyond it: the hands as near as the rest allows).
-        smoothness: Weight of the squared second differences of the change made to the run
-            (rad^2 per rad^2), so that the change adds no jerk.
-        trust_region: The first iteration's largest joint step, rad (grown 1.5x on a kept step to
-            ``max_trust_region``, halved on a rejected one).
-        max_trust_region: Largest joint step of an iteration, rad.
-        stop_margin: Kept from every position stop, rad (at most a fifth of a joint's range).
-        headroom: Share of the speed, acceleration and jerk limits the rows allow.
-        torque_fraction: Share of the effort limits the linearised torque rows allow.
-        torque_watch: Only torques above this share of their efforts get rows (fewer rows, a faster
-            QP; a step that takes another over its effort is refused).
-        collision_margin: Least distance between collision geoms, m.
-        collision_detect: Pairs closer than this at the linearisation get a row, m.
-        min_trust_region: Stop once the trust region is below this, rad.
-        tolerance: Stop once a kept step lowers the merit by less than this share of it.
-    """
-
-    iterations: int = 20
-    position_band: float = 0.003
-    orientation_band: float = math.radians(2.0)
-    pull: float = 0.03
-    trunk_pull: float = 1.0
-    position_cost: float = 100.0
-    smoothness: float = 1e4
-    trust_region: float = math.radians(3.0)
-    max_trust_region: float = math.radians(30.0)
-    stop_margin: float = STOP_MARGIN
-    headroom: float = 0.99
-    torque_fraction: float = 0.9
-    torque_watch: float = 0.5
-    collision_margin: float = 0.01
-    collision_detect: float = 0.05
-    min_trust_region: float = 1e-4
-    tolerance: float = 1e-4
-
-
-def settings_for(solver_settings: object | None) -> WholeTakeSettings:
-    """The stage's settings keeping a solver's limits: its ``stop_margin``, ``torque_fraction`` and
-    ``collision_margin`` where its settings have them (JV, QP, SLSQP, mink), the defaults else."""
+def settings_for(solver_settings: object | None, stage: WholeTakeSettings | None = None) -> WholeTakeSettings:
+    """The stage's settings ``stage`` (a stack's ``[whole_take]``; the defaults if None) keeping a
+    solver's limits and criteria: its ``stop_margin``, ``torque_fraction``, ``collision_margin``,
+    ``criteria`` and ``gamma`` where its settings have them (JV, QP, SLSQP, mink)."""
     own = {
         name: getattr(solver_settings, name)
-        for name in ("stop_margin", "torque_fraction", "collision_margin")
+        for name in ("stop_margin", "torque_fraction", "collision_margin", "criteria", "gamma")
         if hasattr(solver_settings, name)
     }
-    return replace(WholeTakeSettings(), **own)
+    return replace(stage or WholeTakeSettings(), **own)
 
 
 @dataclass(frozen=True, eq=False)
@@ -133,6 +91,7 @@ class Linearisation:
         torque: (T, n) joint torques, N m (the controller check's, :mod:`hlik.executable`).
         torque_jacobian: (T, 3, n, n) d tau_t / d q_{t-1}, d q_t, d q_{t+1}.
         pairs: Per frame, the near pairs' distances (k,), m, and gradients (k, n).
+        criteria: Per criterion its weight, residuals (T, m) and their Jacobians (T, m, n).
     """
 
     position: np.ndarray
@@ -142,6 +101,7 @@ class Linearisation:
     torque: np.ndarray
     torque_jacobian: np.ndarray
     pairs: list[tuple[np.ndarray, np.ndarray]] = field(repr=False)
+    criteria: list[tuple[float, np.ndarray, np.ndarray]] = field(default_factory=list, repr=False)
 
     @property
     def closest(self) -> float:
@@ -153,11 +113,22 @@ class Take:
     """A robot and its TCP targets over a take: what each iteration linearises.
 
     ``pos`` (T, 2, 3), m, and ``rot`` (T, 2, 3, 3): the targets in the base frame; ``dt``: the
-    frame period, s.
+    frame period, s; ``detect``: pairs closer than this get rows, m; ``terms``: the criteria with
+    their weights, evaluated against ``reference`` (the human's, T frames).
     """
 
-    def __init__(self, robot: Robot, pos: np.ndarray, rot: np.ndarray, dt: float, detect: float) -> None:
+    def __init__(
+        self,
+        robot: Robot,
+        pos: np.ndarray,
+        rot: np.ndarray,
+        dt: float,
+        detect: float,
+        terms: Sequence[tuple[Term, float]] = (),
+        reference: HumanReference | None = None,
+    ) -> None:
         self.robot, self.pos, self.rot, self.dt, self.detect = robot, pos, rot, dt, detect
+        self.terms, self.reference = tuple(terms), reference
         self.data = mujoco.MjData(robot.model)
         self.inverse = inverse_model(robot.model)
         self.inverse_data = mujoco.MjData(self.inverse)
@@ -182,7 +153,20 @@ class Take:
             _, dist, grad = near_pairs(self.robot, data, self.pairs, self.detect)
             pairs.append((dist, grad[:, :n]))
         torque, tjac = self.torques(q)
-        return Linearisation(ep, eo, jp[..., :n], jo[..., :n], torque, tjac, pairs)
+        return Linearisation(ep, eo, jp[..., :n], jo[..., :n], torque, tjac, pairs, self.criteria(q))
+
+    def criteria(self, q: np.ndarray) -> list[tuple[float, np.ndarray, np.ndarray]]:
+        """Each term's weight, residuals (T, m) and Jacobians (T, m, n) at the motion ``q`` (T, n)."""
+        if not self.terms or self.reference is None:
+            return []
+        state = robot_state(self.robot, q, jacobians=True)
+        # the three frames before each, newest first (the first frame's are itself); the terms
+        # here read one frame's pose, so only their Sample needs it
+        before = np.clip(np.arange(len(q))[:, None] - np.arange(1, 4)[None], 0, None)
+        sample = reference_sample(
+            self.reference, HandTargets(self.pos, self.rot), slice(None), q[before], self.dt
+        )
+        return [(w, t.residual(state, sample), t.jacobian(state, sample)) for t, w in self.terms]
 
     def torques(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(T, n) the torques of ``q`` as :func:`hlik.executable.controller_checks` computes them
@@ -259,7 +243,7 @@ class _Fixed:
             bounds, rad per frame (those with a finite limit).
         effort: (n,) the effort limits, N m; ``limited`` the joints with one.
         band: (T, 2, 3) each hand's box per axis, m: the band, or as far off as the run left it.
-        reach: (T, 2) how far off each hand may end before the merit's penalty, m.
+        reach: (T, 2) how far off each hand may end, m.
         smooth: (T n, T n) the smoothness term's Hessian on the change to the run.
     """
 
@@ -286,7 +270,9 @@ def refine(problem: Problem, q: np.ndarray, settings: WholeTakeSettings | None =
     t_n, n = q.shape
     if t_n < 2:
         return Refinement(q.copy(), 0, 0, (0.0, 0.0), time.perf_counter() - start)
-    take = Take(robot, problem.targets.pos, problem.targets.rot, problem.dt, s.collision_detect)
+    targets = problem.targets
+    terms = criterion_terms(problem, s)
+    take = Take(robot, targets.pos, targets.rot, problem.dt, s.collision_detect, terms, problem.reference)
     unlimited = np.isinf(robot.lower)
     given = q
     q = q.copy()
@@ -306,13 +292,14 @@ def refine(problem: Problem, q: np.ndarray, settings: WholeTakeSettings | None =
             continue
         trial = q + step
         at_trial = take.linearise(trial)
-        # no torque above the fraction of its effort (or above where it was), no pair closer than
-        # half the margin (or than it was)
+        # no hand beyond its reach, no torque above the fraction of its effort (or above where it
+        # was), no pair closer than half the margin (or than it was)
         limited = fixed.limited
         allowed = np.maximum(s.torque_fraction * fixed.effort[limited], np.abs(lin.torque[:, limited]))
         strong = np.all(np.abs(at_trial.torque[:, limited]) <= allowed + 1e-9)
+        within = np.all(np.linalg.norm(at_trial.position, axis=-1) <= fixed.reach)
         trial_cost = _merit(at_trial, trial, fixed, s)
-        safe = strong and at_trial.closest >= min(0.5 * s.collision_margin, lin.closest)
+        safe = strong and within and at_trial.closest >= min(0.5 * s.collision_margin, lin.closest)
         if safe and trial_cost < cost:
             settled = cost - trial_cost < s.tolerance * cost
             q, lin, cost, accepted = trial, at_trial, trial_cost, accepted + 1
@@ -322,6 +309,21 @@ def refine(problem: Problem, q: np.ndarray, settings: WholeTakeSettings | None =
         else:
             region /= 2.0
     return Refinement(q - turns, iterations, accepted, (first, cost), time.perf_counter() - start)
+
+
+def criterion_terms(problem: Problem, s: WholeTakeSettings) -> list[tuple[Term, float]]:
+    """The criteria of ``s`` that read one frame's pose, each with its weight per squared
+    residual, ``gamma_i * criterion_cost / len(criteria)`` (the criteria of motion, MJE and MIS,
+    are left out: the smoothness term keeps the run's motion), and the trunk upright at
+    ``trunk_upright`` (robots with extra joints)."""
+    terms: list[tuple[Term, float]] = []
+    for name in s.criteria:
+        term = registry.criterion(name, problem.robot, problem.learned)
+        if not term.motion:
+            terms.append((term, unified.gamma(name, s.gamma) * s.criterion_cost / len(s.criteria)))
+    if s.trunk_upright > 0 and problem.robot.extra_joints:
+        terms.append((TrunkUpright(problem.robot), s.trunk_upright))
+    return terms
 
 
 def _fixed(robot: Robot, run: np.ndarray, lin: Linearisation, dt: float, s: WholeTakeSettings) -> _Fixed:
@@ -337,10 +339,10 @@ def _fixed(robot: Robot, run: np.ndarray, lin: Linearisation, dt: float, s: Whol
         for order, limit in enumerate(limits, start=1)
         if np.any(np.isfinite(limit))
     ]
-    # each axis of each hand within the band or as far off as the run left it; the merit's sphere
-    # holds that box with a band more for the curvature the rows do not see (a step of the trust
-    # region on every joint bends a hand's path by millimetres), added, not scaled: a hand the
-    # solver left 4 cm off may not end 6 cm off
+    # each axis of each hand within the band or as far off as the run left it; a step may end a
+    # hand a band beyond that box's corner, for the curvature the rows do not see (a step of the
+    # trust region on every joint bends a hand's path by millimetres), added, not scaled: a hand
+    # the solver left 4 cm off may not end 6 cm off
     band = np.maximum(np.abs(lin.position), s.position_band)  # (T, 2, 3)
     second = sp.kron(sp.diags([1.0, -2.0, 1.0], [0, 1, 2], shape=(t_n - 2, t_n)), eye)
     return _Fixed(
@@ -365,16 +367,15 @@ def _near(s: WholeTakeSettings) -> float:
 
 def _merit(lin: Linearisation, q: np.ndarray, fixed: _Fixed, s: WholeTakeSettings) -> float:
     dist, near = np.linalg.norm(lin.position, axis=-1), _near(s)
-    beyond = np.maximum(dist - fixed.reach, 0.0)
     off = s.position_cost * np.sum(np.where(dist <= near, dist**2, 2.0 * near * dist - near**2))
     turned = np.maximum(np.linalg.norm(lin.orientation, axis=-1) - s.orientation_band, 0.0)
     change = q - fixed.run
     return float(
         off
+        + sum(w * np.sum(e**2) for w, e, _ in lin.criteria)
         + np.sum(turned**2)
         + np.sum(fixed.pull * change**2)
         + s.smoothness * np.sum(np.diff(change, 2, axis=0) ** 2)
-        + PENALTY * np.sum(beyond**2)
     )
 
 
@@ -393,6 +394,9 @@ def _step(
     jw = jo * weight[..., None]
     hessian = np.einsum("tacn,tacm->tnm", jw, jw) + np.diag(fixed.pull + _EPS)
     gradient = np.einsum("tacn,tac->tn", jw, residual) + fixed.pull * change
+    for w, e, j in lin.criteria:  # Gauss-Newton on each criterion's residual
+        hessian += w * np.einsum("tmn,tmk->tnk", j, j)
+        gradient += w * np.einsum("tmn,tm->tn", j, e)
     if s.position_cost > 0.0:
         # the hands as near their targets as the rest allows: the square of the distance within
         # the band's corner, beyond it linear (Huber; as reweighted least squares), so that a hand
@@ -485,7 +489,9 @@ class WholeTake:
 
     @property
     def criteria(self) -> tuple[str, ...]:
-        return tuple(getattr(self.inner, "criteria", ()))
+        """The inner solver's criteria, then the stage's own (what the problem learns pieces for)."""
+        inner = tuple(getattr(self.inner, "criteria", ()))
+        return inner + tuple(c for c in self.settings.criteria if c not in inner)
 
     def __call__(self, problem: Problem) -> SolverResult:
         result = self.inner(problem)
@@ -508,6 +514,7 @@ __all__ = [
     "Take",
     "WholeTake",
     "WholeTakeSettings",
+    "criterion_terms",
     "difference_rows",
     "refine",
 ]
