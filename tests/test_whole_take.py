@@ -106,6 +106,16 @@ def test_the_whole_take_turns_the_hands_toward_their_targets_within_every_limit(
     assert c.lowest_point >= c.base_height - 1e-6
 
 
+def test_a_stage_stopped_by_its_iteration_cap_says_so(peel_runs):
+    robot, plain, _ = peel_runs
+    problem = _problem(robot, plain, ())
+    done = refine(problem, plain.trajectory.q, WholeTakeSettings(iterations=1))
+    assert done.iterations == 1 and done.accepted == 1 and done.capped
+    from hlik.cli.run import _solver_note
+
+    assert "1 QPs (its cap)" in _solver_note(replace(plain, whole_take=done))
+
+
 def test_a_motion_on_its_targets_is_left_alone(peel_runs):
     """With the run's own TCP poses as targets nothing is off: no step lowers the merit."""
     robot, plain, _ = peel_runs
@@ -160,6 +170,62 @@ def test_a_stacks_whole_take_table_sets_the_stage_per_robot(tmp_path):
             load_stack(path)
         assert str(said.value).startswith(str(path)) and "whole_take]" in str(said.value), said.value
         assert says in str(said.value) and "\n" not in str(said.value)
+
+
+@pytest.mark.parametrize("table", ["[whole_take]", "[whole_take.robot.armar3]"])
+@pytest.mark.parametrize("key", ["stop_margin = 0.2", "collision_margin = 0.03", "criteria = []"])
+def test_what_the_stage_keeps_of_its_solver_is_refused_in_its_table(tmp_path, table, key):
+    """The stage takes the solver's margins, criteria and gamma; set in its own table they would be
+    overwritten silently, so the stack is refused, in one line naming the file and the table."""
+    from hlik.solvers.stack_file import load_stack
+
+    path = tmp_path / "mine.toml"
+    path.write_text(f"{table}\n{key}\n")
+    with pytest.raises(SettingsError, match=r"mine.toml: \[whole_take.*is the solver's") as said:
+        load_stack(path)
+    assert "\n" not in str(said.value)
+
+
+def test_the_stage_watches_pairs_beyond_a_wide_margin_of_its_solver():
+    """A solver's collision margin at or beyond the stage's detection distance moves that distance
+    out with it (was: the run failed after placement, naming no file)."""
+    from hlik.solvers.settings import QPSettings
+    from hlik.solvers.whole_take import settings_for
+
+    s = settings_for(QPSettings(collision_margin=0.06))
+    assert s.collision_margin == 0.06 and s.collision_detect == pytest.approx(0.10)
+    mine = settings_for(QPSettings(collision_margin=0.02), WholeTakeSettings(collision_detect=0.015))
+    assert mine.collision_detect > mine.collision_margin == 0.02
+    assert settings_for(QPSettings()).collision_detect == WholeTakeSettings().collision_detect
+
+
+@pytest.mark.parametrize(
+    "bad", [{"trunk_upright": 1e300}, {"pull": -1.0}, {"trust_region": 1.0}, {"min_trust_region": 0.1}]
+)
+def test_bad_stage_settings_are_refused_in_python_too(bad):
+    with pytest.raises(SettingsError, match="WholeTakeSettings"):
+        WholeTakeSettings(**bad)
+
+
+def test_a_misspelt_robot_table_of_the_stage_is_noted(tmp_path):
+    from hlik.solvers.stack_file import load_stack
+
+    path = tmp_path / "mine.toml"
+    path.write_text("[whole_take.robot.armar33]\ncriterion_cost = 0.0\n")
+    notes = load_stack(path).near_misses("qp", "armar3")
+    assert any("[whole_take.robot.armar33]" in n and "typo" in n for n in notes), notes
+
+
+def test_the_stage_in_python_keeps_its_solvers_limits_and_criteria():
+    from hlik.solvers import get_solver
+    from hlik.solvers.settings import QPSettings
+    from hlik.solvers.whole_take import WholeTake
+
+    qp = QPSettings(stop_margin=0.1, criteria=("SYN",))
+    own = WholeTake(get_solver("qp", qp))
+    assert own.stage.stop_margin == 0.1 and own.stage.criteria == ("SYN",) and own.criteria == ("SYN",)
+    given = WholeTake(get_solver("qp", qp), WholeTakeSettings(criteria=("HJA_r",)))
+    assert given.stage.stop_margin == WholeTakeSettings().stop_margin and given.criteria == ("SYN", "HJA_r")
 
 
 def test_the_stage_weighs_the_criteria_of_one_frames_pose_as_the_paper(peel_runs):

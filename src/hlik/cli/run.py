@@ -134,8 +134,9 @@ WholeTakeOpt = Annotated[
     typer.Option(
         "--whole-take",
         help="Then optimise the solver's motion over the whole take at once (hlik.solvers.whole_take): "
-        "the hands turned toward their targets where the frame-by-frame solver left them off, within "
-        "every limit the solver keeps; tens of ms a frame. Not with a relative-pose stack or --solver jm.",
+        "the hands turned toward their targets where the frame-by-frame solver left them off, the "
+        "solver's criteria weighed against them (the stack's [whole_take] table), within every limit "
+        "the solver keeps; tens of ms a frame. Not with a relative-pose stack or --solver jm.",
         metavar=FLAG,
         show_default=False,
     ),
@@ -340,7 +341,8 @@ def _solver_note(result: RunResult) -> str:
     if done is not None:  # --whole-take
         merit = f"merit {done.merit[0]:.3g} -> {done.merit[1]:.3g}" if done.accepted else "no step kept"
         notes.append(
-            f"then the whole take at once: {done.iterations} QPs, {done.accepted} steps kept, {merit}, "
+            f"then the whole take at once: {done.iterations} QPs{' (its cap)' if done.capped else ''}, "
+            f"{done.accepted} steps kept, {merit}, "
             f"{done.seconds:.1f} s (--whole-take)"
         )
     return "; ".join(notes)

@@ -387,6 +387,7 @@ def check_settings(
     at_most_zero: Sequence[str] = (),
     fractions: Sequence[str] = (),
     counts: Sequence[str] = (),
+    weights: Sequence[str] = (),
 ) -> None:
     """Check a solver's settings dataclass in its ``__post_init__``, so that the Python API refuses
     what a stack file would: every listed field a finite number ``>= 0`` (``at_least_zero``),
@@ -394,7 +395,8 @@ def check_settings(
     number in [1, :data:`MAX_COUNT`] (``counts``); the ``scenario``, the ``gamma`` table (criterion
     -> finite number ``>= 0``) and, where present, ``collision_detect > collision_margin``. Every
     weight (a field named ``<what>_cost``) is in [0, :data:`MAX_WEIGHT`], ``collision_margin``
-    ``>= 0`` and ``collision_detect > 0`` without being listed, and every switch (a ``bool``
+    ``>= 0`` and ``collision_detect > 0`` without being listed (``weights``: other fields bounded as
+    the weights), and every switch (a ``bool``
     field) True or False.
 
     Raises:
@@ -402,7 +404,7 @@ def check_settings(
             (:mod:`hlik.solvers.stack_file` turns it into ``"<file>: [<solver>] <field> ..."``).
     """
     owner = type(settings).__name__
-    weights = tuple(f.name for f in dataclasses.fields(settings) if f.name.endswith("_cost"))  # type: ignore[arg-type]
+    weights = (*weights, *(f.name for f in dataclasses.fields(settings) if f.name.endswith("_cost")))  # type: ignore[arg-type]
     if hasattr(settings, "collision_margin"):  # SolverSettings
         at_least_zero, positive = (*at_least_zero, "collision_margin"), (*positive, "collision_detect")
     if hasattr(settings, "stop_margin"):  # every solver's LimitSettings
@@ -528,15 +530,32 @@ class WholeTakeSettings:
     def __post_init__(self):
         check_settings(
             self,
-            at_least_zero=(
-                "position_band",
-                "orientation_band",
-                "pull",
-                "trunk_pull",
-                "smoothness",
-                "trunk_upright",
-            ),
+            at_least_zero=("position_band", "orientation_band"),
             positive=("trust_region", "max_trust_region", "min_trust_region", "tolerance"),
             fractions=("headroom", "torque_watch"),
             counts=("iterations",),
+            weights=("pull", "trunk_pull", "smoothness", "trunk_upright"),
         )
+        if not self.min_trust_region <= self.trust_region <= self.max_trust_region:
+            raise SettingsError(
+                "WholeTakeSettings.trust_region must lie in [min_trust_region, max_trust_region] "
+                f"({self.min_trust_region}, {self.max_trust_region}), got {self.trust_region}"
+            )
+
+
+# what the whole-take stage keeps of the solver it follows
+SOLVERS_OWN = ("stop_margin", "torque_fraction", "collision_margin", "criteria", "gamma")
+
+
+def settings_for(solver_settings: object | None, stage: WholeTakeSettings | None = None) -> WholeTakeSettings:
+    """The stage's settings ``stage`` (a stack's ``[whole_take]``; the defaults if None) keeping a
+    solver's limits and criteria (:data:`SOLVERS_OWN`: ``stop_margin``, ``torque_fraction``,
+    ``collision_margin``, ``criteria``, ``gamma``) where its settings have them (JV, QP, SLSQP,
+    mink). A solver's margin at or beyond the stage's ``collision_detect`` moves it out with the
+    margin: the pairs watched that far beyond the margin as before."""
+    stage = stage or WholeTakeSettings()
+    own = {name: getattr(solver_settings, name) for name in SOLVERS_OWN if hasattr(solver_settings, name)}
+    margin = own.get("collision_margin", stage.collision_margin)
+    if stage.collision_detect <= margin:
+        own["collision_detect"] = margin + max(stage.collision_detect - stage.collision_margin, 0.01)
+    return dataclasses.replace(stage, **own)

@@ -22,7 +22,7 @@ from types import MappingProxyType
 from hlik.criteria import registry
 from hlik.robot.files import available_robots
 from hlik.solvers.bounds import MAX_WEIGHT
-from hlik.solvers.settings import WholeTakeSettings
+from hlik.solvers.settings import SOLVERS_OWN, WholeTakeSettings
 from hlik.util.errors import SettingsError
 from hlik.util.paths import tasks_dir
 from hlik.util.tomlfile import did_you_mean, read_toml, unknown_key
@@ -87,10 +87,11 @@ class Stack:
 
     def near_misses(self, solver: str, robot: str) -> list[str]:
         """Notes on what a run of ``solver`` on ``robot`` leaves unused: ``[<solver>.robot.<name>]``
-        tables whose name is close to the robot's (``armar7`` for ``armar6``: likely a typo; tables
-        for other robots are not refused when the stack is read, since a robot's name can be
-        anything), and ``[mink]``'s own tasks and limits under another solver."""
-        layers = ("qp", solver) if solver == "mink" else (solver,)
+        and ``[whole_take.robot.<name>]`` tables whose name is close to the robot's (``armar7``
+        for ``armar6``: likely a typo; tables for other robots are not refused when the stack is
+        read, since a robot's name can be anything), and ``[mink]``'s own tasks and limits under
+        another solver."""
+        layers = (*(("qp", solver) if solver == "mink" else (solver,)), STAGE_TABLE)
         # another bundled robot's table is meant for it (armar6 beside armar3), not a typo
         names = {n for s in layers for n in self.robots.get(s, {})} - {robot, *available_robots()}
         notes = [
@@ -159,7 +160,10 @@ def _parse(raw: dict, path: Path) -> Stack:
         if not isinstance(table, dict):
             raise SettingsError(f"{path}: [{solver}] must be a table")
         fields = {f.name: f for f in dataclasses.fields(settings_class(solver))}
-        allowed = set(fields) - {"criteria", "scenario", *(("gamma",) if solver == STAGE_TABLE else ())}
+        allowed = set(fields) - {"criteria", "scenario"}
+        if solver == STAGE_TABLE:
+            _solvers_own(table, path)
+            allowed -= set(SOLVERS_OWN)
         _check_keys(table, allowed | {ROBOT_TABLE}, path, f"[{solver}]")
         solvers[solver] = MappingProxyType(
             {k: _setting(solver, solver, k, v, fields, path) for k, v in table.items() if k != ROBOT_TABLE}
@@ -201,6 +205,22 @@ def _parse(raw: dict, path: Path) -> Stack:
                 table = solver if robot is None else f"{solver}.{ROBOT_TABLE}.{robot}"
                 raise SettingsError(f"{path}: [{table}] {str(e).removeprefix(owner)}") from None
     return stack
+
+
+def _solvers_own(table: dict, path: Path) -> None:
+    """Refuse in ``[whole_take]`` (and its robots' tables) what the stage keeps of its solver."""
+    tables = [("", table), *((f".{ROBOT_TABLE}.{r}", t) for r, t in _robot_tables(table).items())]
+    for where, own in tables:
+        for key in (k for k in SOLVERS_OWN if k in own):
+            home = "the top level" if key == "criteria" else "[qp], [jv], [slsqp] or [mink]"
+            raise SettingsError(
+                f"{path}: [{STAGE_TABLE}{where}] {key} is the solver's (the stage keeps it): set it in {home}"
+            )
+
+
+def _robot_tables(table: dict) -> dict:
+    own = table.get(ROBOT_TABLE, {})
+    return {r: t for r, t in own.items() if isinstance(t, dict)} if isinstance(own, dict) else {}
 
 
 def _setting(solver: str, table: str, key: str, value: object, fields: dict, path: Path) -> object:

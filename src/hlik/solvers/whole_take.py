@@ -12,7 +12,8 @@ for every frame's step dq:
     min  sum_t sum_hands |e_o (1 - band / |e_o|) + J_o dq_t|^2   (hands turned beyond the band)
          + position_cost |e_p + J_p dq_t|^2   (Huber: linear beyond the band's corner)
          + pull_j (q_t + dq_t - q_run,t)^2 + smoothness |D2 (q + dq - q_run)|^2
-         + sum_i w_i |e_i + J_i dq_t|^2   (the run's criteria, w_i = gamma_i criterion_cost / k)
+         + sum_i w_i |e_i + J_i dq_t|^2   (the run's criteria, w_i = gamma_i criterion_cost / k,
+                                            and the trunk toward home at ``trunk_upright``)
     s.t. the stops less ``stop_margin``; |dq_t| <= the trust region; the last two frames kept;
          speed, acceleration (and jerk) limits as the controller check differences them
          (:mod:`hlik.executable`: at rest before the first frame), times ``headroom``;
@@ -23,8 +24,10 @@ for every frame's step dq:
 with e_o the rotation vector of R R*^T (rad), e_p the TCP's offset (m), e_i a criterion's
 residual at frame t (:class:`~hlik.criteria.base.Term`; those of one frame's pose: the criteria of
 motion, MJE and MIS, are left to the smoothness term). A row the start already breaks is moved to
-where the start is. The hands come first: within their bands they cost nothing, and there the
-criteria the solver added shape the arm; ``pull`` keeps the rest of the posture. The take ends in
+where the start is. Within their bands the hands cost nothing and the criteria the solver added
+shape the arm; beyond, the criteria are weighed against the hands' orientation (a weighted trade:
+``criterion_cost``, per robot in a stack's ``[whole_take]``); ``pull`` keeps the rest of the
+posture. The take ends in
 the solver's own last two frames, from which the solvers keep the joints able to brake before their
 stops' margins. A step is kept only if the merit (the objective's terms as they are at the step)
 falls, no hand ends further off than its rows' box corner and a band more (the curvature the rows
@@ -62,22 +65,10 @@ from hlik.robot.state import robot_state
 from hlik.solvers.base import Solver, SolverResult
 from hlik.solvers.catalog import WHOLE_TAKE
 from hlik.solvers.limits import MotionLimits
-from hlik.solvers.settings import LimitSettings, WholeTakeSettings
+from hlik.solvers.settings import LimitSettings, WholeTakeSettings, settings_for
 from hlik.util.spatial import rotation_vector
 
 _EPS = 1e-6  # rad^2: damping of every step, so that the QP is strictly convex
-
-
-def settings_for(solver_settings: object | None, stage: WholeTakeSettings | None = None) -> WholeTakeSettings:
-    """The stage's settings ``stage`` (a stack's ``[whole_take]``; the defaults if None) keeping a
-    solver's limits and criteria: its ``stop_margin``, ``torque_fraction``, ``collision_margin``,
-    ``criteria`` and ``gamma`` where its settings have them (JV, QP, SLSQP, mink)."""
-    own = {
-        name: getattr(solver_settings, name)
-        for name in ("stop_margin", "torque_fraction", "collision_margin", "criteria", "gamma")
-        if hasattr(solver_settings, name)
-    }
-    return replace(stage or WholeTakeSettings(), **own)
 
 
 @dataclass(frozen=True, eq=False)
@@ -205,6 +196,7 @@ class Refinement:
         iterations: QPs solved; ``accepted`` the steps kept.
         merit: The merit before and after.
         seconds: Wall time, s.
+        capped: True where it stopped at ``iterations`` QPs, its merit still falling.
     """
 
     q: np.ndarray
@@ -212,6 +204,7 @@ class Refinement:
     accepted: int
     merit: tuple[float, float]
     seconds: float
+    capped: bool = False
 
 
 def difference_rows(t_n: int, order: int) -> sp.csr_matrix:
@@ -281,7 +274,7 @@ def refine(problem: Problem, q: np.ndarray, settings: WholeTakeSettings | None =
     lin = take.linearise(q)
     fixed = _fixed(robot, q, lin, problem.dt, s)
     cost = first = _merit(lin, q, fixed, s)
-    region, iterations, accepted = s.trust_region, 0, 0
+    region, iterations, accepted, settled = s.trust_region, 0, 0, False
     if cost == 0.0:  # every hand within its bands already
         region = 0.0
     while iterations < s.iterations and region >= s.min_trust_region:
@@ -308,7 +301,8 @@ def refine(problem: Problem, q: np.ndarray, settings: WholeTakeSettings | None =
                 break
         else:
             region /= 2.0
-    return Refinement(q - turns, iterations, accepted, (first, cost), time.perf_counter() - start)
+    capped = not settled and iterations == s.iterations and region >= s.min_trust_region
+    return Refinement(q - turns, iterations, accepted, (first, cost), time.perf_counter() - start, capped)
 
 
 def criterion_terms(problem: Problem, s: WholeTakeSettings) -> list[tuple[Term, float]]:
@@ -475,11 +469,14 @@ def _torque_rows(jac: np.ndarray, t_n: int, n: int) -> sp.csr_matrix:
 @dataclass(frozen=True)
 class WholeTake:
     """A solver whose frame-by-frame result is then optimised over the whole take (:func:`refine`);
-    its name is the inner solver's with ``+whole``. ``announce(stage)``, if given, is told when the
-    whole-take stage starts, ``report(refinement)`` what it did."""
+    its name is the inner solver's with ``+whole``. ``settings`` None: the defaults with the inner
+    solver's limits and criteria (:func:`settings_for` of its ``settings``, where it has them: the
+    solvers of :func:`hlik.solvers.get_solver`); given, they are used as they are.
+    ``announce(stage)``, if given, is told when the whole-take stage starts, ``report(refinement)``
+    what it did."""
 
     inner: Solver
-    settings: WholeTakeSettings = field(default_factory=WholeTakeSettings)
+    settings: WholeTakeSettings | None = None
     announce: Callable[[str], None] | None = None
     report: Callable[[Refinement], None] | None = None
 
@@ -488,16 +485,21 @@ class WholeTake:
         return f"{self.inner.name}{WHOLE_TAKE}"
 
     @property
+    def stage(self) -> WholeTakeSettings:
+        """The settings the stage runs with."""
+        return self.settings or settings_for(getattr(self.inner, "settings", None))
+
+    @property
     def criteria(self) -> tuple[str, ...]:
         """The inner solver's criteria, then the stage's own (what the problem learns pieces for)."""
         inner = tuple(getattr(self.inner, "criteria", ()))
-        return inner + tuple(c for c in self.settings.criteria if c not in inner)
+        return inner + tuple(c for c in self.stage.criteria if c not in inner)
 
     def __call__(self, problem: Problem) -> SolverResult:
         result = self.inner(problem)
         if self.announce is not None:
             self.announce(f"optimising the whole take ({problem.n_frames} frames)")
-        done = refine(problem, result.q, self.settings)
+        done = refine(problem, result.q, self.stage)
         if self.report is not None:
             self.report(done)
         diagnostics = replace(
@@ -517,4 +519,5 @@ __all__ = [
     "criterion_terms",
     "difference_rows",
     "refine",
+    "settings_for",
 ]
