@@ -679,3 +679,31 @@ def test_a_full_disk_inside_an_atomic_write_names_the_file(tmp_path):
     with pytest.raises(OSError) as e, atomic_path(target):
         raise OSError(errno.ENOSPC, "No space left on device")
     assert e.value.filename == str(target) and files(tmp_path) == []
+
+
+def test_a_termination_raised_where_python_ignores_it_prints_no_traceback(capsys, monkeypatch):
+    """SIGTERM's handler may run inside a weakref callback or ``__del__`` (a study's CI run met it in
+    importlib's module lock), where Python prints the SystemExit as "Exception ignored" with a
+    traceback and goes on; the block stays quiet there and still ends with 128 + 15."""
+    import signal
+    import sys
+
+    from hlik.util.atomic import raising_on_sigterm
+
+    if signal.getsignal(signal.SIGTERM) is not signal.SIG_DFL:
+        pytest.skip("a SIGTERM handler is set by the test runner")
+    monkeypatch.setattr(sys, "unraisablehook", sys.__unraisablehook__)  # Python's, not pytest's
+
+    class Dies:
+        def __init__(self, handler):
+            self.handler = handler
+
+        def __del__(self):
+            self.handler(signal.SIGTERM, None)
+
+    with pytest.raises(SystemExit) as ended:
+        with raising_on_sigterm() as handler:
+            Dies(handler)  # collected at once: its SystemExit cannot propagate
+    assert ended.value.code == 128 + signal.SIGTERM
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and "Exception ignored" not in err, err

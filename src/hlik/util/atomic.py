@@ -225,10 +225,21 @@ def raising_on_sigterm() -> Iterator[Termination]:
         yield handler  # never called
         return
     signal.signal(signal.SIGTERM, handler)
+    hook = sys.unraisablehook
+
+    def quiet(unraisable: sys.UnraisableHookArgs) -> None:
+        # the handler's exit raised where Python ignores exceptions (a weakref callback, __del__):
+        # no traceback for it, check() ends the program
+        if not (handler.signum and unraisable.exc_type is SystemExit):
+            hook(unraisable)
+
+    sys.unraisablehook = quiet
     try:
         yield handler
         handler.check()
     finally:
+        if sys.unraisablehook is quiet:
+            sys.unraisablehook = hook
         if signal.getsignal(signal.SIGTERM) is handler:  # unless the block set another
             signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
