@@ -4,6 +4,7 @@ limit, leaving a motion already on its targets alone."""
 
 from __future__ import annotations
 
+import re
 from dataclasses import replace
 
 import numpy as np
@@ -184,6 +185,18 @@ def test_what_the_stage_keeps_of_its_solver_is_refused_in_its_table(tmp_path, ta
     with pytest.raises(SettingsError, match=r"mine.toml: \[whole_take.*is the solver's") as said:
         load_stack(path)
     assert "\n" not in str(said.value)
+
+
+def test_a_solvers_setting_above_the_tables_is_not_sent_to_the_stages(tmp_path):
+    from hlik.solvers.stack_file import load_stack
+
+    path = tmp_path / "mine.toml"
+    for key, tables in (("stop_margin", "[qp] or [jv] or [slsqp] or [mink]"), ("iterations", "[whole_take]")):
+        path.write_text(f"{key} = 1\n")
+        with pytest.raises(
+            SettingsError, match=rf"{key} is a solver's setting: put it in {re.escape(tables)}$"
+        ):
+            load_stack(path)
 
 
 def test_the_stage_watches_pairs_beyond_a_wide_margin_of_its_solver():

@@ -8,16 +8,20 @@ TOML; :meth:`Metric.table3` is the paper's.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from types import MappingProxyType
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from hlik.criteria import registry
 from hlik.util.errors import HlikError, SettingsError
 from hlik.util.tomlfile import read_toml, unknown_key
+
+if TYPE_CHECKING:
+    from hlik.criteria.base import Criterion
 
 # Sec. V: functional criteria and their mid-points, per scenario.
 FUNCTIONAL_X0: Mapping[str, Mapping[str, float]] = MappingProxyType(
@@ -49,6 +53,19 @@ def gamma(name: str, overrides: Mapping[str, float] | None = None) -> float:
     if overrides and name in overrides:
         return float(overrides[name])
     return registry.criterion_class(name).gamma
+
+
+def weighted_criteria(
+    names: Sequence[str],
+    robot: object,
+    learned: object | None,
+    cost: float,
+    overrides: Mapping[str, float] | None,
+) -> list[tuple[Criterion, float]]:
+    """Each criterion of ``names`` for ``robot`` (:func:`~hlik.criteria.registry.criterion`, built
+    from ``learned``) with the paper's weight ``gamma_i * cost / k`` (Sec. V: the solver's criterion
+    weight shared among the k criteria), gamma_i by :func:`gamma`."""
+    return [(registry.criterion(n, robot, learned), gamma(n, overrides) * cost / len(names)) for n in names]
 
 
 def logistic(x: np.ndarray, x0: float) -> np.ndarray:

@@ -33,10 +33,9 @@ import mink
 import mujoco
 import numpy as np
 
-from hlik.criteria import registry, unified
+from hlik.criteria import unified
 from hlik.criteria.base import Sample, Term
 from hlik.criteria.functional import fORI, fORI_off, target_terms
-from hlik.criteria.learned import Learned
 from hlik.problem.problem import Problem
 from hlik.robot.model import Robot
 from hlik.robot.state import RobotState, robot_state
@@ -237,17 +236,6 @@ def _avoiding_step(
     return np.zeros(n), np.zeros(n), None
 
 
-def criterion_terms(robot: Robot, settings: JVSettings, learned: Learned | None) -> list[tuple[Term, float]]:
-    """The criteria of ``settings``, each with its null-space weight w_i."""
-    return [
-        (
-            registry.criterion(name, robot, learned),
-            settings.criterion_cost * unified.gamma(name, settings.gamma) / len(settings.criteria),
-        )
-        for name in settings.criteria
-    ]
-
-
 ROTATIONAL = (fORI, fORI_off)  # the target terms in rad; the others are in m
 AT_BOUND = 1e-9  # rad: a joint this close to a bound of the frame's box is held there
 NULL_FLOOR = 1e-3  # the least carried null-space bound, a share of max_null
@@ -418,7 +406,10 @@ def solve(
     robot, learned = problem.robot, problem.learned
     config = mink.Configuration(robot.model) if limits else None
     tasks, first = list(target_terms(settings.scenario)), list(target_terms(FIRST_FRAME_SCENARIO))
-    criteria = criterion_terms(robot, settings, learned)
+    # each criterion with its null-space weight w_i
+    criteria = unified.weighted_criteria(
+        settings.criteria, robot, learned, settings.criterion_cost, settings.gamma
+    )
     first_criteria = first_frame_terms(criteria)
     data = mujoco.MjData(robot.model)
     margins = (settings.collision_margin, settings.collision_detect, settings.collision_gain)

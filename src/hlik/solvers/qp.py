@@ -17,7 +17,7 @@ from functools import partial
 import mink
 import numpy as np
 
-from hlik.criteria import registry, unified
+from hlik.criteria import unified
 from hlik.criteria.base import Term
 from hlik.criteria.elbows import ElbowsAhead
 from hlik.criteria.functional import HAND_TERMS, target_terms
@@ -64,11 +64,11 @@ def build_terms(
         terms.append((TrunkUpright(robot), settings.trunk_cost))
     if settings.elbow_cost > 0:
         terms.append((ElbowsAhead(settings.elbow_allowance), settings.elbow_cost))
-    for name in settings.criteria:
-        term = registry.criterion(name, robot, learned)
-        # the objective weighs ||e_i||^2 by gamma_i * criterion_cost / k, as the paper weighs h_i
-        weight = unified.gamma(name, settings.gamma) * settings.criterion_cost / len(settings.criteria)
-        terms.append((term, float(np.sqrt(weight))))
+    # the objective weighs ||e_i||^2 by gamma_i * criterion_cost / k, as the paper weighs h_i
+    weighted = unified.weighted_criteria(
+        settings.criteria, robot, learned, settings.criterion_cost, settings.gamma
+    )
+    terms += [(term, float(np.sqrt(weight))) for term, weight in weighted]
     return first_frame_terms(terms) if first else terms
 
 

@@ -160,11 +160,9 @@ def _parse(raw: dict, path: Path) -> Stack:
         if not isinstance(table, dict):
             raise SettingsError(f"{path}: [{solver}] must be a table")
         fields = {f.name: f for f in dataclasses.fields(settings_class(solver))}
-        allowed = set(fields) - {"criteria", "scenario"}
-        if solver == STAGE_TABLE:
-            _solvers_own(table, path)
-            allowed -= set(SOLVERS_OWN)
-        _check_keys(table, allowed | {ROBOT_TABLE}, path, f"[{solver}]")
+        solvers_own = SOLVERS_OWN if solver == STAGE_TABLE else ()
+        allowed = _field_names(solver) - {"criteria", "scenario"}
+        _check_keys(table, allowed | {ROBOT_TABLE}, path, f"[{solver}]", solvers_own)
         solvers[solver] = MappingProxyType(
             {k: _setting(solver, solver, k, v, fields, path) for k, v in table.items() if k != ROBOT_TABLE}
         )
@@ -172,7 +170,9 @@ def _parse(raw: dict, path: Path) -> Stack:
         if not isinstance(own, dict) or not all(isinstance(t, dict) for t in own.values()):
             raise SettingsError(f"{path}: [{solver}.{ROBOT_TABLE}] must hold one table per robot name")
         for robot, overrides in own.items():
-            _check_keys(overrides, allowed - {"gamma"}, path, f"[{solver}.{ROBOT_TABLE}.{robot}]")
+            _check_keys(
+                overrides, allowed - {"gamma"}, path, f"[{solver}.{ROBOT_TABLE}.{robot}]", solvers_own
+            )
         robots[solver] = MappingProxyType(
             {
                 robot: MappingProxyType(
@@ -205,22 +205,6 @@ def _parse(raw: dict, path: Path) -> Stack:
                 table = solver if robot is None else f"{solver}.{ROBOT_TABLE}.{robot}"
                 raise SettingsError(f"{path}: [{table}] {str(e).removeprefix(owner)}") from None
     return stack
-
-
-def _solvers_own(table: dict, path: Path) -> None:
-    """Refuse in ``[whole_take]`` (and its robots' tables) what the stage keeps of its solver."""
-    tables = [("", table), *((f".{ROBOT_TABLE}.{r}", t) for r, t in _robot_tables(table).items())]
-    for where, own in tables:
-        for key in (k for k in SOLVERS_OWN if k in own):
-            home = "the top level" if key == "criteria" else "[qp], [jv], [slsqp] or [mink]"
-            raise SettingsError(
-                f"{path}: [{STAGE_TABLE}{where}] {key} is the solver's (the stage keeps it): set it in {home}"
-            )
-
-
-def _robot_tables(table: dict) -> dict:
-    own = table.get(ROBOT_TABLE, {})
-    return {r: t for r, t in own.items() if isinstance(t, dict)} if isinstance(own, dict) else {}
 
 
 def _setting(solver: str, table: str, key: str, value: object, fields: dict, path: Path) -> object:
@@ -262,11 +246,19 @@ RENAMED = {
 
 
 def _field_names(solver: str) -> set[str]:
-    """The settings a solver's table takes."""
-    return {f.name for f in dataclasses.fields(settings_class(solver))}
+    """The settings a solver's table takes (the stage's: not what it keeps of its solver)."""
+    names = {f.name for f in dataclasses.fields(settings_class(solver))}
+    return names - set(SOLVERS_OWN) if solver == STAGE_TABLE else names
 
 
-def _check_keys(table: dict, allowed: set[str], path: Path, where: str) -> None:
+def _check_keys(table: dict, allowed: set[str], path: Path, where: str, solvers: Sequence[str] = ()) -> None:
+    """Refuse an unknown key; ``solvers``: keys the whole-take stage keeps of its solver (here they
+    would be overwritten silently), each refused as the solver's."""
+    if own := [k for k in solvers if k in table]:
+        home = "the top level" if own[0] == "criteria" else "[qp], [jv], [slsqp] or [mink]"
+        raise SettingsError(
+            f"{path}: {where} {own[0]} is the solver's (the stage keeps it): set it in {home}"
+        )
     if problem := unknown_key(table, allowed, where, RENAMED):
         raise SettingsError(f"{path}: {problem}")
 

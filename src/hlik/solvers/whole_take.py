@@ -52,7 +52,7 @@ import numpy as np
 import qpsolvers
 import scipy.sparse as sp
 
-from hlik.criteria import registry, unified
+from hlik.criteria import unified
 from hlik.criteria.base import Term
 from hlik.criteria.joints import TrunkUpright
 from hlik.problem.problem import Problem
@@ -150,7 +150,9 @@ class Take:
         """Each term's weight, residuals (T, m) and Jacobians (T, m, n) at the motion ``q`` (T, n)."""
         if not self.terms or self.reference is None:
             return []
-        state = robot_state(self.robot, q, jacobians=True)
+        # only the site Jacobians the terms read (SYN and HJA_r none), as the solvers compute them
+        sites = tuple(sorted({i for t, _ in self.terms for i in (*t.sites, *t.value_sites)}))
+        state = robot_state(self.robot, q, jacobians=bool(sites), data=self.data, jacobian_sites=sites)
         # the three frames before each, newest first (the first frame's are itself); the terms
         # here read one frame's pose, so only their Sample needs it
         before = np.clip(np.arange(len(q))[:, None] - np.arange(1, 4)[None], 0, None)
@@ -310,11 +312,10 @@ def criterion_terms(problem: Problem, s: WholeTakeSettings) -> list[tuple[Term, 
     residual, ``gamma_i * criterion_cost / len(criteria)`` (the criteria of motion, MJE and MIS,
     are left out: the smoothness term keeps the run's motion), and the trunk upright at
     ``trunk_upright`` (robots with extra joints)."""
-    terms: list[tuple[Term, float]] = []
-    for name in s.criteria:
-        term = registry.criterion(name, problem.robot, problem.learned)
-        if not term.motion:
-            terms.append((term, unified.gamma(name, s.gamma) * s.criterion_cost / len(s.criteria)))
+    weighted = unified.weighted_criteria(
+        s.criteria, problem.robot, problem.learned, s.criterion_cost, s.gamma
+    )
+    terms: list[tuple[Term, float]] = [(term, weight) for term, weight in weighted if not term.motion]
     if s.trunk_upright > 0 and problem.robot.extra_joints:
         terms.append((TrunkUpright(problem.robot), s.trunk_upright))
     return terms
