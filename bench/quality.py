@@ -1,7 +1,8 @@
 """Quality table: robot x approach -> m_hl, m_f, m_hl,f and median fPOS on the recorded KIT takes.
 
 An approach is a solver with the criteria it adds, e.g. ``jm``, ``qp``, ``qp+SYN``, ``jv+HJA_r``
-(``+whole``: its result then optimised over the whole take, ``hlik run --whole-take``),
+(``+whole``: its result then optimised over the whole take, ``hlik run --whole-take``; ``+alone``:
+without, ``--no-whole-take``; neither: as the stack chooses for the robot, as ``hlik run`` does),
 ``slsqp+SYN+HJA_r``. The stack (weights) is ``tasks/ee_pose.toml`` or ``tasks/relative_pose.toml``
 (``--scenario``), or ``--stack``. Each take is cropped to ``--seconds`` after skipping the first second.
 ``fPOS reach`` is the median over frames whose target lies within 95 % of the arm's length from the
@@ -76,8 +77,9 @@ def run(
 ) -> dict:
     robot = hlik.load_robot(robot_name)
     solver, *criteria = approach.split("+")
-    whole = "whole" in criteria  # the solver's result then optimised over the whole take
-    criteria = [c for c in criteria if c != "whole"]
+    # the solver's result then optimised over the whole take, or not; None: the stack's choice
+    whole = True if "whole" in criteria else False if "alone" in criteria else None
+    criteria = [c for c in criteria if c not in ("whole", "alone")]
     solver, _, own_stack = solver.partition("@")
     stack_name = own_stack or stack_name or ("relative_pose" if scenario == "relative" else "ee_pose")
     learned = learn(robot)

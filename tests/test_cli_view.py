@@ -88,6 +88,7 @@ VARIANTS = {
     "corpus": [Path("/data/kit")],
     "span": [(1.0, 3.0)],
     "time_scale": [2.0, 0.5],
+    "whole_take": [True],
 }
 
 
@@ -107,6 +108,15 @@ def test_default_names_differ_for_runs_that_differ():
     assert len(set(tags)) == len(tags), [t for t in tags if tags.count(t) > 1]
     assert _tag() == "qp"  # the defaults add nothing
     assert all(re.fullmatch(r"[\w.,+-]+", t) for t in tags)
+
+
+def test_default_name_says_the_whole_take_where_the_run_differs_from_its_stack():
+    """``--whole-take`` / ``--no-whole-take`` change the name only against what the stack does for
+    the solver and robot (ee_pose: the stage after the QP on 2-Panda, not on ARMAR-6)."""
+    assert _tag(whole_take=None) == _tag(whole_take=False) == "qp" and _tag(whole_take=True) == "qp-whole"
+    staged = {"whole_take_default": True}
+    assert _tag(whole_take=None, **staged) == _tag(whole_take=True, **staged) == "qp"
+    assert _tag(whole_take=False, **staged) == "qp-alone"
 
 
 def test_default_name_leaves_out_the_stacks_own_criteria():

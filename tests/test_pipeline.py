@@ -21,7 +21,9 @@ from hlik.problem.scale import scale_subject
 from hlik.retarget import retarget
 from hlik.robot.model import load_robot
 from hlik.solvers import get_solver
+from hlik.solvers.settings import settings_for
 from hlik.solvers.stack_file import load_stack
+from hlik.solvers.whole_take import WholeTake
 from hlik.study.approaches import Approach
 from hlik.study.dataset import Cell, run_cell
 from hlik.util.errors import HlikError
@@ -64,8 +66,11 @@ def test_a_run_is_its_stages(cut_take):
     motion = scale_subject(load_motion(cut_take, rate=100.0).crop(1.0, 1.4), robot)
     learned = learn(robot)
     where = placement_from_spec(robot.placement, robot, motion)
-    settings = load_stack("ee_pose").with_criteria(["SYN"]).settings("qp", robot.name)  # its own table
-    traj = retarget(motion, robot, get_solver("qp", settings), where, learned)
+    stack = load_stack("ee_pose").with_criteria(["SYN"])
+    settings = stack.settings("qp", robot.name)  # its own table
+    # then the whole take, as ee_pose chooses for the QP on ARMAR-III ([whole_take.robot.armar3] after)
+    stage = settings_for(settings, stack.settings("whole_take", robot.name))
+    traj = retarget(motion, robot, WholeTake(get_solver("qp", settings), stage), where, learned)
     ev = evaluate(traj, robot, learned)
     np.testing.assert_array_equal(result.trajectory.q, traj.q)
     assert result.evaluation.m_hl == ev.m_hl and result.evaluation.m_f == ev.m_f

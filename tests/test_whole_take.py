@@ -67,7 +67,9 @@ def peel_runs(takes):
     """The Peel take's 2.5-4.5 s on 2-Panda (its right hand up to 13 deg off with the QP), the QP + SYN +
     HJA_r run and the same run optimised over the whole take."""
     (take,) = [p for p in takes if p.name.startswith("Peel_")]
-    spec = RunSpec(motion=take, robot="dual_panda", criteria=("SYN", "HJA_r"), span=(2.5, 4.5))
+    spec = RunSpec(
+        motion=take, robot="dual_panda", criteria=("SYN", "HJA_r"), span=(2.5, 4.5), whole_take=False
+    )
     robot = load_robot("dual_panda")
     plain = run(spec, robot=robot)
     whole = run(replace(spec, whole_take=True), robot=robot, learned=plain.learned)
@@ -171,6 +173,50 @@ def test_a_stacks_whole_take_table_sets_the_stage_per_robot(tmp_path):
             load_stack(path)
         assert str(said.value).startswith(str(path)) and "whole_take]" in str(said.value), said.value
         assert says in str(said.value) and "\n" not in str(said.value)
+
+
+def test_a_stack_chooses_which_solvers_the_stage_follows_per_robot(tmp_path):
+    """``after`` in ``[whole_take]`` and its robots' tables: the runs that do not say
+    (``RunSpec.whole_take`` None, no ``--whole-take`` / ``--no-whole-take``) follow it; a run that
+    says wins. ee_pose: after the QP and SLSQP on ARMAR-III and 2-Panda, nowhere on ARMAR-6."""
+    from hlik.solvers.stack_file import load_stack
+
+    ee_pose = load_stack("ee_pose")
+    for robot, solvers in (("armar3", {"qp", "slsqp"}), ("dual_panda", {"qp", "slsqp"}), ("armar6", set())):
+        assert {s for s in ("qp", "jv", "slsqp", "mink") if ee_pose.whole_take(s, robot)} == solvers
+    assert not ee_pose.whole_take("jm", "armar3") and not ee_pose.whole_take("qp", "g1")
+    path = tmp_path / "mine.toml"
+    path.write_text('[whole_take]\nafter = ["jv"]\n[whole_take.robot.armar6]\nafter = []\n')
+    stack = load_stack(path)
+    assert stack.whole_take("jv", "armar3") and not stack.whole_take("jv", "armar6")
+    assert not stack.whole_take("qp", "armar3")
+    assert stack.settings("whole_take", "armar3") == WholeTakeSettings()  # not a setting of the stage
+    spec = RunSpec(stack=path, solver="jv")
+    assert spec.follows_whole_take("armar3") and not spec.follows_whole_take("armar6")
+    assert not replace(spec, whole_take=False).follows_whole_take("armar3")
+    assert replace(spec, whole_take=True).follows_whole_take("armar6")
+    assert not RunSpec(stack=path, solver="jm").follows_whole_take("armar3")
+
+
+@pytest.mark.parametrize(
+    ("text", "says"),
+    [
+        ('[whole_take]\nafter = "qp"', "after must be a list of solvers"),
+        ('[whole_take.robot.armar3]\nafter = ["jm"]', "after must be a list of solvers"),
+        ('[whole_take]\nafter = ["qp", 3]', "after must be a list of solvers"),
+        ('scenario = "relative"\n[whole_take]\nafter = ["qp"]', "tracks their relative pose"),
+        ('after = ["qp"]', "put it in [whole_take]"),
+    ],
+)
+def test_a_bad_after_is_refused_in_one_line_naming_the_file(tmp_path, text, says):
+    from hlik.solvers.stack_file import load_stack
+
+    path = tmp_path / "mine.toml"
+    path.write_text(text + "\n")
+    with pytest.raises(SettingsError) as said:
+        load_stack(path)
+    assert str(said.value).startswith(str(path)) and says in str(said.value), said.value
+    assert "\n" not in str(said.value)
 
 
 @pytest.mark.parametrize("table", ["[whole_take]", "[whole_take.robot.armar3]"])

@@ -58,7 +58,8 @@ class RunResult:
             :attr:`warnings` adds those about the result.
         solve_seconds: Wall time of the solve, s.
         solve_cpu: CPU time of the solve, s.
-        whole_take: What the whole-take stage did (``spec.whole_take``; None without it).
+        whole_take: What the whole-take stage did (``spec.whole_take``, or the stack's choice
+            for the solver and robot; None without it).
     """
 
     spec: RunSpec
@@ -186,7 +187,7 @@ def run(
     wall, cpu = time.perf_counter(), time.process_time()
     solver = get_solver(spec.solver, settings, step, limits)
     refined: list[Refinement] = []
-    if spec.whole_take:
+    if spec.follows_whole_take(robot.name):
         from hlik.solvers.whole_take import WholeTake, settings_for
 
         announce = lambda stage: _say(progress, stage)  # noqa: E731

@@ -61,7 +61,8 @@ class RunSpec:
         settings: Solver settings fields to override, name -> value (``bench --set``).
         whole_take: Optimise the solver's result over the whole take at once
             (:mod:`hlik.solvers.whole_take`, keeping the solver's limits; a stack tracking both
-            hands' poses, a solver other than ``jm``).
+            hands' poses, a solver other than ``jm``); None: as the stack chooses for the solver
+            and robot (its ``[whole_take]`` ``after``, :meth:`follows_whole_take`).
     """
 
     motion: Path | None = None
@@ -79,7 +80,7 @@ class RunSpec:
     metric: Path | None = None
     gradients: str = "analytic"
     settings: Mapping[str, object] = field(default_factory=lambda: MappingProxyType({}))
-    whole_take: bool = False
+    whole_take: bool | None = None
 
     @property
     def motion_path(self) -> Path:
@@ -95,6 +96,13 @@ class RunSpec:
         if not solver_spec(self.solver).takes_criteria:
             return stack.with_criteria([])  # jm maps the joints: the stack's criteria are the others'
         return stack.with_criteria(list(self.criteria)) if self.criteria is not None else stack
+
+    def follows_whole_take(self, robot: str) -> bool:
+        """Whether the whole-take stage follows the solver on ``robot`` (its ``name``):
+        :attr:`whole_take` where given, else the stack's choice (:meth:`Stack.whole_take`)."""
+        if self.whole_take is not None:
+            return self.whole_take
+        return self.task_stack().whole_take(self.solver, robot)
 
     def check(self) -> Stack:
         """Every setting that can be checked without reading the motion; returns the task stack.

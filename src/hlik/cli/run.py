@@ -130,14 +130,15 @@ TimeScaleOpt = Annotated[
     ),
 ]
 WholeTakeOpt = Annotated[
-    bool,
+    bool | None,
     typer.Option(
-        "--whole-take",
+        "--whole-take/--no-whole-take",
         help="Then optimise the solver's motion over the whole take at once (hlik.solvers.whole_take): "
         "the hands turned toward their targets where the frame-by-frame solver left them off, the "
         "solver's criteria weighed against them (the stack's [whole_take] table), within every limit "
-        "the solver keeps; tens of ms a frame. Not with a relative-pose stack or --solver jm.",
-        metavar=FLAG,
+        "the solver keeps; tens of ms a frame. Not with a relative-pose stack or --solver jm. "
+        "Default: as the stack chooses for the solver and robot ([whole_take] after; ee_pose: after "
+        "qp and slsqp on ARMAR-III and 2-Panda).",
         show_default=False,
     ),
 ]
@@ -179,7 +180,7 @@ def run(
     span: SpanOpt = None,
     time_scale: TimeScaleOpt = 1.0,
     export: ExportOpt = None,
-    whole_take: WholeTakeOpt = False,
+    whole_take: WholeTakeOpt = None,
 ) -> None:
     """Retarget a motion to a robot; write a Rerun recording and the trajectory (.npz) beside it."""
     from hlik.recording.layout import LAYOUTS
@@ -338,12 +339,17 @@ def _solver_note(result: RunResult) -> str:
         said = f"look-ahead pulled at {pull:g}{unit}" if pull > 0 else "one pass, no look-ahead"
         notes.append(f"{said} (preview_cost)")
     done = result.whole_take
-    if done is not None:  # --whole-take
+    if done is not None:
         merit = f"merit {done.merit[0]:.3g} -> {done.merit[1]:.3g}" if done.accepted else "no step kept"
+        why = (
+            "--whole-take"
+            if result.spec.whole_take
+            else "the stack's [whole_take] after; off: --no-whole-take"
+        )
         notes.append(
             f"then the whole take at once: {done.iterations} QPs{' (its cap)' if done.capped else ''}, "
             f"{done.accepted} steps kept, {merit}, "
-            f"{done.seconds:.1f} s (--whole-take)"
+            f"{done.seconds:.1f} s ({why})"
         )
     return "; ".join(notes)
 
@@ -366,7 +372,15 @@ def _settings(result: RunResult, layout: str) -> dict[str, str]:
         "placement": spec.placement or result.robot.placement,
         "corpus": _corpus_label(spec.corpus, result.learned.corpus),
         "gradients": spec.gradients,
+        "whole take": _whole_take_label(result),
     }
+
+
+def _whole_take_label(result: RunResult) -> str:
+    """Whether the whole-take stage followed the solver, and who chose it."""
+    if result.whole_take is None:
+        return "no" if result.spec.whole_take is not None else "no (the stack's choice)"
+    return "yes (--whole-take)" if result.spec.whole_take else "yes (the stack's [whole_take] after)"
 
 
 def _inputs(spec: RunSpec) -> list:
@@ -399,7 +413,9 @@ def _tag(spec: RunSpec, robot: RobotDefaults, layout: str, corpus_source: str) -
         layout=layout,
         span=spec.span,
         time_scale=spec.time_scale,
+        # named where it differs from what the stack does for the solver and robot
         whole_take=spec.whole_take,
+        whole_take_default=stack.whole_take(spec.solver, robot.name),
         corpus=spec.corpus if corpus_source in ("--corpus", "HLIK_CORPUS") else None,
     )
 
@@ -421,7 +437,8 @@ def _run_tag(
     corpus: Path | None,
     span: tuple[float, float] | None = None,
     time_scale: float = 1.0,
-    whole_take: bool = False,
+    whole_take: bool | None = None,
+    whole_take_default: bool = False,
 ) -> str:
     """The part of the default output name after motion and robot: every choice that changes the
     result, defaults left out, e.g. ``slsqp_SYN_fd``, ``qp_my_stack_at-0.4_1.2_90``: the
@@ -431,7 +448,8 @@ def _run_tag(
         named: Sequence[str] = ()
     else:
         named = criteria or (("nocriteria",) if stack_criteria else ())
-    parts = [solver + ("-whole" if whole_take else ""), *(() if default_stack else (stack,)), *named]
+    whole = "" if whole_take in (None, whole_take_default) else ("-whole" if whole_take else "-alone")
+    parts = [solver + whole, *(() if default_stack else (stack,)), *named]
     parts += ["fd"] if gradients == "fd" else []
     parts += [f"at-{placement}"] if placement is not None else []
     parts += [f"scale-{scale}"] if scale is not None else []

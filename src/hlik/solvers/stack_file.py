@@ -6,7 +6,9 @@ gamma, and one table of settings per solver (``[qp]``, ``[jv]``, ``[slsqp]``, th
 solver's settings class; a ``[qp.gamma]`` table overrides ``[gamma]`` for that solver alone). Each
 added criterion weighs ``gamma_i * criterion weight / len(criteria)``, as in the paper. A
 ``[whole_take]`` table sets the whole-take stage's
-(:class:`~hlik.solvers.settings.WholeTakeSettings`; its criteria and gamma are the solver's).
+(:class:`~hlik.solvers.settings.WholeTakeSettings`; its criteria and gamma are the solver's), and
+its ``after`` key the solvers it follows where a run does not say (``--whole-take`` /
+``--no-whole-take``), per robot in ``[whole_take.robot.<name>]``.
 """
 
 from __future__ import annotations
@@ -32,6 +34,7 @@ SOLVER_TABLES = ("qp", "jv", "slsqp", "mink")
 STAGE_TABLE = "whole_take"  # the whole-take stage after any of them
 TABLES = (*SOLVER_TABLES, STAGE_TABLE)
 ROBOT_TABLE = "robot"  # [qp.robot.armar6]: that robot's settings over [qp]'s
+AFTER = "after"  # [whole_take] after = ["qp"]: the solvers the stage follows unless a run says
 
 
 @dataclass(frozen=True)
@@ -80,10 +83,20 @@ class Stack:
         for s in layers:  # the robot's own values over every solver table's
             table |= self.robots.get(s, {}).get(robot, {}) if robot is not None else {}
         if solver == STAGE_TABLE:  # its criteria and gamma are the solver's (settings_for)
+            table.pop(AFTER, None)  # the stack's choice of runs, not a setting of the stage
             return cls(**table)
         solver_gamma: Mapping[str, float] = table.pop("gamma", {})  # type: ignore[assignment]
         gamma = MappingProxyType({**cls().gamma, **self.gamma, **solver_gamma})  # onto the solver's own
         return cls(criteria=self.criteria, scenario=self.scenario, gamma=gamma, **table)
+
+    def whole_take(self, solver: str, robot: str) -> bool:
+        """Whether a run of ``solver`` on ``robot`` (its ``name``) is followed by the whole-take
+        stage where it does not say: ``solver`` in ``[whole_take.robot.<robot>]``'s ``after``, else
+        in ``[whole_take]``'s (none by default)."""
+        after = self.robots.get(STAGE_TABLE, {}).get(robot, {}).get(AFTER)
+        if after is None:
+            after = self.solvers.get(STAGE_TABLE, {}).get(AFTER, ())
+        return solver in after  # type: ignore[operator]
 
     def near_misses(self, solver: str, robot: str) -> list[str]:
         """Notes on what a run of ``solver`` on ``robot`` leaves unused: ``[<solver>.robot.<name>]``
@@ -196,6 +209,12 @@ def _parse(raw: dict, path: Path) -> Stack:
         robots=MappingProxyType(robots),
         path=path,
     )
+    stage = [stack.solvers.get(STAGE_TABLE, {}), *stack.robots.get(STAGE_TABLE, {}).values()]
+    if scenario != "pose" and any(t.get(AFTER) for t in stage):
+        raise SettingsError(
+            f"{path}: [{STAGE_TABLE}] {AFTER}: the stage optimises both hands' poses; this stack "
+            f"tracks their {scenario} pose, retargeted frame by frame only"
+        )
     for solver in TABLES:  # refuse bad values now, naming the file, not when a solver starts
         owner = f"{settings_class(solver).__name__}."
         for robot in (None, *stack.robots.get(solver, {})):
@@ -212,6 +231,8 @@ def _setting(solver: str, table: str, key: str, value: object, fields: dict, pat
     field's kind."""
     if key == "gamma":
         return _gamma(value, path, f"{table}.gamma")
+    if solver == STAGE_TABLE and key == AFTER:
+        return _after(value, path, table)
     if solver == "mink" and key in ("tasks", "limits"):
         from hlik.solvers.mink_specs import check_specs
 
@@ -220,6 +241,16 @@ def _setting(solver: str, table: str, key: str, value: object, fields: dict, pat
         except SettingsError as e:
             raise SettingsError(f"{path}: [mink] {e}") from None
     return _value(value, fields[key].default, path, f"[{table}] {key}")
+
+
+def _after(value: object, path: Path, table: str) -> tuple[str, ...]:
+    """``[whole_take]``'s ``after``: the solvers (by table name) the stage follows by default."""
+    if not isinstance(value, list) or not all(isinstance(v, str) and v in SOLVER_TABLES for v in value):
+        raise SettingsError(
+            f"{path}: [{table}] {AFTER} must be a list of solvers among {', '.join(SOLVER_TABLES)}, "
+            f'e.g. ["qp", "slsqp"], got {value!r}'
+        )
+    return tuple(value)
 
 
 def _gamma(table: object, path: Path, where: str) -> Mapping[str, float]:
@@ -246,9 +277,10 @@ RENAMED = {
 
 
 def _field_names(solver: str) -> set[str]:
-    """The settings a solver's table takes (the stage's: not what it keeps of its solver)."""
+    """The settings a solver's table takes (the stage's: not what it keeps of its solver, and
+    ``after``)."""
     names = {f.name for f in dataclasses.fields(settings_class(solver))}
-    return names - set(SOLVERS_OWN) if solver == STAGE_TABLE else names
+    return (names - set(SOLVERS_OWN)) | {AFTER} if solver == STAGE_TABLE else names
 
 
 def _check_keys(table: dict, allowed: set[str], path: Path, where: str, solvers: Sequence[str] = ()) -> None:
