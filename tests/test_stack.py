@@ -176,6 +176,8 @@ def test_cli_runs_every_solver_from_a_stack(takes, tmp_path, solver, extra):
     staged = solver in ("qp", "slsqp") and "relative_pose" not in extra and "--no-whole-take" not in extra
     assert traj.solver == solver + ("+whole" if staged else "") and out.is_file()
     assert ("(the stack's [whole_take] after" in result.stdout) == staged, result.stdout
+    # leaving out the stage the stack follows SLSQP with on ARMAR-III is said
+    assert ("without the whole-take stage" in result.stdout) == ("--no-whole-take" in extra)
     assert ("(relative)" in result.stdout) == ("relative_pose" in extra)  # scored as its stack says
 
 

@@ -339,6 +339,9 @@ def _solver_note(result: RunResult) -> str:
         said = f"look-ahead pulled at {pull:g}{unit}" if pull > 0 else "one pass, no look-ahead"
         notes.append(f"{said} (preview_cost)")
     done = result.whole_take
+    spec = result.spec
+    if spec.whole_take is False and spec.task_stack().whole_take(spec.solver, result.robot.name):
+        notes.append("without the whole-take stage the stack follows it with, its weights chosen for both")
     if done is not None:
         merit = f"merit {done.merit[0]:.3g} -> {done.merit[1]:.3g}" if done.accepted else "no step kept"
         why = (
