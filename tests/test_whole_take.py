@@ -13,6 +13,7 @@ import pytest
 from conftest import central_differences, data_file
 from hlik.executable import controller_checks
 from hlik.pipeline import RunSpec, run
+from hlik.robot.files import robot_toml
 from hlik.robot.model import load_robot
 from hlik.solvers.catalog import solver_spec
 from hlik.solvers.whole_take import Take, WholeTakeSettings, difference_rows, refine
@@ -196,6 +197,10 @@ def test_a_stack_chooses_which_solvers_the_stage_follows_per_robot(tmp_path):
     assert not replace(spec, whole_take=False).follows_whole_take("armar3")
     assert replace(spec, whole_take=True).follows_whole_take("armar6")
     assert not RunSpec(stack=path, solver="jm").follows_whole_take("armar3")
+    # the spec's own robot where none is named: by name, or by its description's path
+    assert RunSpec(stack=path, solver="jv", robot="armar3").follows_whole_take()
+    assert not RunSpec(stack=path, solver="jv", robot="armar6").follows_whole_take()
+    assert RunSpec(solver="qp", robot=robot_toml("dual_panda")).follows_whole_take()
 
 
 @pytest.mark.parametrize(

@@ -16,7 +16,7 @@ from types import MappingProxyType
 
 from hlik.human.formats import motion_format
 from hlik.human.limits import RATE_RANGE, scale_factor
-from hlik.robot.files import robot_toml
+from hlik.robot.files import robot_defaults, robot_toml
 from hlik.solvers.catalog import SPECS, check_solver, solver_spec
 from hlik.solvers.stack_file import SCENARIOS, Stack, check_criteria, load_stack
 from hlik.util.errors import HlikError, SettingsError
@@ -97,12 +97,14 @@ class RunSpec:
             return stack.with_criteria([])  # jm maps the joints: the stack's criteria are the others'
         return stack.with_criteria(list(self.criteria)) if self.criteria is not None else stack
 
-    def follows_whole_take(self, robot: str) -> bool:
-        """Whether the whole-take stage follows the solver on ``robot`` (its ``name``):
-        :attr:`whole_take` where given, else the stack's choice (:meth:`Stack.whole_take`)."""
+    def follows_whole_take(self, robot: str | None = None) -> bool:
+        """Whether the whole-take stage follows the solver: :attr:`whole_take` where given, else
+        the stack's choice (:meth:`Stack.whole_take`) for the robot named ``robot`` (None: this
+        spec's, its description's ``name``)."""
         if self.whole_take is not None:
             return self.whole_take
-        return self.task_stack().whole_take(self.solver, robot)
+        name = robot if robot is not None else robot_defaults(str(self.robot)).name
+        return self.task_stack().whole_take(self.solver, name)
 
     def check(self) -> Stack:
         """Every setting that can be checked without reading the motion; returns the task stack.

@@ -135,10 +135,11 @@ WholeTakeOpt = Annotated[
         "--whole-take/--no-whole-take",
         help="Then optimise the solver's motion over the whole take at once (hlik.solvers.whole_take): "
         "the hands turned toward their targets where the frame-by-frame solver left them off, the "
-        "solver's criteria weighed against them (the stack's [whole_take] table), within every limit "
+        "solver's criteria weighed against them (the stack's \\[whole_take] table), within every limit "
         "the solver keeps; tens of ms a frame. Not with a relative-pose stack or --solver jm. "
-        "Default: as the stack chooses for the solver and robot ([whole_take] after; ee_pose: after "
+        "Default: as the stack chooses for the solver and robot (\\[whole_take] after; ee_pose: after "
         "qp and slsqp on ARMAR-III and 2-Panda).",
+        metavar=FLAG,
         show_default=False,
     ),
 ]
@@ -339,9 +340,6 @@ def _solver_note(result: RunResult) -> str:
         said = f"look-ahead pulled at {pull:g}{unit}" if pull > 0 else "one pass, no look-ahead"
         notes.append(f"{said} (preview_cost)")
     done = result.whole_take
-    spec = result.spec
-    if spec.whole_take is False and spec.task_stack().whole_take(spec.solver, result.robot.name):
-        notes.append("without the whole-take stage the stack follows it with, its weights chosen for both")
     if done is not None:
         merit = f"merit {done.merit[0]:.3g} -> {done.merit[1]:.3g}" if done.accepted else "no step kept"
         why = (
@@ -382,7 +380,7 @@ def _settings(result: RunResult, layout: str) -> dict[str, str]:
 def _whole_take_label(result: RunResult) -> str:
     """Whether the whole-take stage followed the solver, and who chose it."""
     if result.whole_take is None:
-        return "no" if result.spec.whole_take is not None else "no (the stack's choice)"
+        return "no (--no-whole-take)" if result.spec.whole_take is False else "no (the stack's choice)"
     return "yes (--whole-take)" if result.spec.whole_take else "yes (the stack's [whole_take] after)"
 
 
