@@ -43,10 +43,22 @@ def solve_qp(
     if solver != "daqp":
         g = a_ineq if len(b_ineq) else None
         h = b_ineq if len(b_ineq) else None
-        return qpsolvers.solve_qp(hessian, gradient, G=g, h=h, lb=lb, ub=ub, solver=solver)
+        return qpsolvers_solve(hessian, gradient, G=g, h=h, lb=lb, ub=ub, solver=solver)
     # daqp directly: qpsolvers' wrapping costs as much as the solve itself at this size
     sense = np.zeros(len(lb) + len(b_ineq), dtype=np.int32)
     upper = np.concatenate([ub, b_ineq])
     lower = np.concatenate([lb, np.full(len(b_ineq), -1e30)])
     x, _, exitflag, _ = daqp.solve(hessian, gradient, a_ineq, upper, lower, sense)
     return np.asarray(x) if exitflag > 0 else None
+
+
+def qpsolvers_solve(*args, **kwargs) -> np.ndarray | None:
+    """``qpsolvers.solve_qp``, None where the solver fails to build the problem. Clarabel's wrapper
+    turns every exception into a ``ProblemError``, Ctrl-C and SIGTERM's exit among them (a
+    traceback instead of "interrupted"): those are raised again as they came."""
+    try:
+        return qpsolvers.solve_qp(*args, **kwargs)
+    except qpsolvers.ProblemError as e:
+        if isinstance(e.__cause__, KeyboardInterrupt | SystemExit):
+            raise e.__cause__ from None
+        return None

@@ -49,7 +49,6 @@ from dataclasses import dataclass, field, replace
 
 import mujoco
 import numpy as np
-import qpsolvers
 import scipy.sparse as sp
 
 from hlik.criteria import unified
@@ -65,6 +64,7 @@ from hlik.robot.state import robot_state
 from hlik.solvers.base import Solver, SolverResult
 from hlik.solvers.catalog import WHOLE_TAKE
 from hlik.solvers.limits import MotionLimits
+from hlik.solvers.qp_backend import qpsolvers_solve
 from hlik.solvers.settings import LimitSettings, WholeTakeSettings, settings_for
 from hlik.util.spatial import rotation_vector
 
@@ -443,7 +443,7 @@ def _step(
     box_lo[-2 * n :], box_hi[-2 * n :] = 0.0, 0.0
     with warnings.catch_warnings(record=True) as said:  # Clarabel short of its tolerances
         warnings.simplefilter("always")
-        x = qpsolvers.solve_qp(
+        x = qpsolvers_solve(
             (sp.block_diag(list(hessian)) + fixed.smooth).tocsc(),
             gradient.reshape(-1) + fixed.smooth @ change.reshape(-1),
             sp.vstack(rows).tocsc(),
