@@ -118,6 +118,12 @@ def test_with_criteria_replaces_the_list():
         ("[qp.robot.armar6.gamma]\nSYN = 1.0", "unknown key 'gamma' in [qp.robot.armar6]"),
         ("[qp]\nrobot = 3", "[qp.robot] must hold one table per robot name"),
         ("scenario = ", "not valid TOML"),
+        # the whole-take stage's solvers to follow (hlik run without --whole-take / --no-whole-take)
+        ('[whole_take]\nafter = "qp"', "after must be a list of solvers"),
+        ('[whole_take.robot.armar3]\nafter = ["jm"]', "after must be a list of solvers"),
+        ('[whole_take]\nafter = ["qp", 3]', "after must be a list of solvers"),
+        ('scenario = "relative"\n[whole_take]\nafter = ["qp"]', "tracks their relative pose"),
+        ('after = ["qp"]', "put it in [whole_take]"),
     ],
 )
 def test_bad_stack_files_name_the_file_and_the_problem(tmp_path, text, problem):
@@ -125,6 +131,7 @@ def test_bad_stack_files_name_the_file_and_the_problem(tmp_path, text, problem):
     path.write_text(text)
     with pytest.raises(HlikError, match="bad.toml") as err:
         load_stack(path)
+    assert str(err.value).startswith(str(path)), err.value
     assert problem in str(err.value) and "\n" not in str(err.value)
 
 

@@ -203,27 +203,6 @@ def test_a_stack_chooses_which_solvers_the_stage_follows_per_robot(tmp_path):
     assert RunSpec(solver="qp", robot=robot_toml("dual_panda")).follows_whole_take()
 
 
-@pytest.mark.parametrize(
-    ("text", "says"),
-    [
-        ('[whole_take]\nafter = "qp"', "after must be a list of solvers"),
-        ('[whole_take.robot.armar3]\nafter = ["jm"]', "after must be a list of solvers"),
-        ('[whole_take]\nafter = ["qp", 3]', "after must be a list of solvers"),
-        ('scenario = "relative"\n[whole_take]\nafter = ["qp"]', "tracks their relative pose"),
-        ('after = ["qp"]', "put it in [whole_take]"),
-    ],
-)
-def test_a_bad_after_is_refused_in_one_line_naming_the_file(tmp_path, text, says):
-    from hlik.solvers.stack_file import load_stack
-
-    path = tmp_path / "mine.toml"
-    path.write_text(text + "\n")
-    with pytest.raises(SettingsError) as said:
-        load_stack(path)
-    assert str(said.value).startswith(str(path)) and says in str(said.value), said.value
-    assert "\n" not in str(said.value)
-
-
 @pytest.mark.parametrize("table", ["[whole_take]", "[whole_take.robot.armar3]"])
 @pytest.mark.parametrize("key", ["stop_margin = 0.2", "collision_margin = 0.03", "criteria = []"])
 def test_what_the_stage_keeps_of_its_solver_is_refused_in_its_table(tmp_path, table, key):

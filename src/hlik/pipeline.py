@@ -187,7 +187,7 @@ def run(
     wall, cpu = time.perf_counter(), time.process_time()
     solver = get_solver(spec.solver, settings, step, limits)
     refined: list[Refinement] = []
-    if spec.follows_whole_take(robot.name):
+    if spec.follows_whole_take(robot.name, stack):
         from hlik.solvers.whole_take import WholeTake, settings_for
 
         announce = lambda stage: _say(progress, stage)  # noqa: E731

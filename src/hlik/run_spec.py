@@ -97,14 +97,14 @@ class RunSpec:
             return stack.with_criteria([])  # jm maps the joints: the stack's criteria are the others'
         return stack.with_criteria(list(self.criteria)) if self.criteria is not None else stack
 
-    def follows_whole_take(self, robot: str | None = None) -> bool:
+    def follows_whole_take(self, robot: str | None = None, stack: Stack | None = None) -> bool:
         """Whether the whole-take stage follows the solver: :attr:`whole_take` where given, else
         the stack's choice (:meth:`Stack.whole_take`) for the robot named ``robot`` (None: this
-        spec's, its description's ``name``)."""
+        spec's, its description's ``name``); ``stack``: :meth:`task_stack` already read."""
         if self.whole_take is not None:
             return self.whole_take
         name = robot if robot is not None else robot_defaults(str(self.robot)).name
-        return self.task_stack().whole_take(self.solver, name)
+        return (stack or self.task_stack()).whole_take(self.solver, name)
 
     def check(self) -> Stack:
         """Every setting that can be checked without reading the motion; returns the task stack.

@@ -342,11 +342,7 @@ def _solver_note(result: RunResult) -> str:
     done = result.whole_take
     if done is not None:
         merit = f"merit {done.merit[0]:.3g} -> {done.merit[1]:.3g}" if done.accepted else "no step kept"
-        why = (
-            "--whole-take"
-            if result.spec.whole_take
-            else "the stack's [whole_take] after; off: --no-whole-take"
-        )
+        why = _whole_take_chooser(result) + ("" if result.spec.whole_take else "; off: --no-whole-take")
         notes.append(
             f"then the whole take at once: {done.iterations} QPs{' (its cap)' if done.capped else ''}, "
             f"{done.accepted} steps kept, {merit}, "
@@ -381,7 +377,12 @@ def _whole_take_label(result: RunResult) -> str:
     """Whether the whole-take stage followed the solver, and who chose it."""
     if result.whole_take is None:
         return "no (--no-whole-take)" if result.spec.whole_take is False else "no (the stack's choice)"
-    return "yes (--whole-take)" if result.spec.whole_take else "yes (the stack's [whole_take] after)"
+    return f"yes ({_whole_take_chooser(result)})"
+
+
+def _whole_take_chooser(result: RunResult) -> str:
+    """Who chose the whole-take stage that ran: the command line or the stack."""
+    return "--whole-take" if result.spec.whole_take else "the stack's [whole_take] after"
 
 
 def _inputs(spec: RunSpec) -> list:
