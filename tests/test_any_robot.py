@@ -234,6 +234,10 @@ def test_auto_scale_keeps_the_subjects_reach_about_the_robots_shoulders(g1, cut_
         assert abs(shoulders[2] - robot_z) < 1e-9
         note = scaled.notes[-1]
         assert note.startswith(str(cut_take)) and "about its shoulders" in note and " the floor" in note
+        # the objects move with the subject, and the note says to what height (the robot works there)
+        before = np.nanmedian(np.concatenate([o.position[:, 2] for o in motion.objects.values()]))
+        after = np.nanmedian(np.concatenate([o.position[:, 2] for o in scaled.objects.values()]))
+        assert f"median height {before:.2f} m -> {after:.2f} m" in note
     assert (
         1.4 < auto_scale(load_robot("armar6"), motion) < 1.6
         and "feet 0.7" in note

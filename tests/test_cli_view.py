@@ -598,7 +598,7 @@ def test_piped_output_never_breaks_a_path(short_take, tmp_path, monkeypatch):
     assert any(line.startswith("open with: rerun ") and str(out) in line for line in lines)
     assert not [line for line in lines if line.endswith(" ")]
     controller = [line for line in lines if line.lstrip().startswith("controller")]
-    assert len(controller) == 1 and controller[0].rstrip().endswith("at the acceleration limits)")
+    assert len(controller) == 1 and controller[0].rstrip().endswith("an export adds the braking)")
     scored = invoke("evaluate", out.with_suffix(".npz"), env={"COLUMNS": "80"})  # its table's title
     assert scored.exit_code == 0, scored.output
     assert any(out.with_suffix(".npz").name in line for line in scored.stdout.splitlines()), scored.stdout
@@ -755,7 +755,7 @@ def test_the_controller_row_says_how_the_motion_ends():
     backward = _checks(10, end_speed=np.array([-0.5]), acceleration_limit=np.array([2.0]))
     assert backward.stop_time == pytest.approx(0.25)  # a joint moving the other way stops as long
     unlimited = _checks(10, end_speed=np.array([0.5]), acceleration_limit=np.array([np.inf]))
-    assert "(no acceleration limits given)" in controller_line(unlimited)
+    assert "(no acceleration limits given; an export adds the braking)" in controller_line(unlimited)
     mixed = _checks(
         10,
         joint_names=("a", "b"),
@@ -766,7 +766,7 @@ def test_the_controller_row_says_how_the_motion_ends():
         jerk_limit=np.ones(2),
         effort_limit=np.ones(2),
     )
-    assert "(a joint without an acceleration limit among them)" in controller_line(mixed)
+    assert "(a joint without an acceleration limit among them; an export adds" in controller_line(mixed)
 
 
 def test_the_json_has_no_ratio_to_a_limit_not_given():

@@ -12,6 +12,7 @@ from scipy.spatial.transform import Rotation
 from typer.testing import CliRunner
 
 from hlik import load_motion, load_robot, retarget
+from hlik.braking import brought_to_rest
 from hlik.cli import app
 from hlik.export import export, first_violation
 from hlik.export.csvfile import BASE_COLUMNS
@@ -34,13 +35,21 @@ def _read_csv(path):
 
 
 def test_csv_round_trip_gives_back_names_times_angles_and_base_exactly(panda_qp, tmp_path):
+    """The take's rows are the trajectory to the bit; the rows after them brake it to rest (the
+    demo's first 0.6 s end moving, which held would break the acceleration limit)."""
     robot, traj = panda_qp
-    assert first_violation(traj, robot) is None  # the QP keeps every limit
+    assert "the last, held after it" in first_violation(traj, robot)  # ends moving: a controller stops it
+    rest, stop = brought_to_rest(traj, robot)
+    assert stop.n_frames > 0 and first_violation(rest, robot) is None  # the QP keeps every limit
     path = export(traj, robot, tmp_path / "t.csv", "csv")
     comments, names, table = _read_csv(path)
     assert names == ["time", *robot.joint_names, *BASE_COLUMNS]
-    np.testing.assert_array_equal(table[:, 0], traj.times - traj.times[0])
-    np.testing.assert_array_equal(table[:, 1 : 1 + robot.dof], traj.q)
+    take = slice(0, traj.n_frames)
+    np.testing.assert_array_equal(table[take, 0], traj.times - traj.times[0])
+    np.testing.assert_array_equal(table[take, 1 : 1 + robot.dof], traj.q)
+    np.testing.assert_array_equal(table[traj.n_frames :, 1 : 1 + robot.dof], stop.q)
+    np.testing.assert_allclose(np.diff(table[:, 0]), traj.period)
+    assert any(f"the last {stop.n_frames} rows" in c and "bring the joints to rest" in c for c in comments)
     base = table[:, 1 + robot.dof :]
     assert np.all(base == base[0])
     np.testing.assert_array_equal(base[0, :3], traj.placement.translation)
@@ -58,7 +67,7 @@ def test_columns_follow_the_names_not_the_positions(panda_qp, tmp_path):
     robot, traj = panda_qp
     _, names, table = _read_csv(export(traj, robot, tmp_path / "t.csv"))
     for j, name in enumerate(robot.joint_names):
-        np.testing.assert_array_equal(table[:, names.index(name)], traj.q[:, j])
+        np.testing.assert_array_equal(table[: traj.n_frames, names.index(name)], traj.q[:, j])
 
 
 @pytest.mark.parametrize("kind", ["position", "speed", "acceleration"])
@@ -130,6 +139,7 @@ def test_mcap_round_trip_through_the_ros2_reader(panda_qp, tmp_path):
 
     robot, traj = panda_qp
     path = export(traj, robot, tmp_path / "t.mcap", "mcap")
+    traj, stop = brought_to_rest(traj, robot)  # what an export writes: the take, then its braking
     topics: dict[str, list] = {}
     with open(path, "rb") as f:
         for _, channel, message, ros_msg in make_reader(
@@ -158,6 +168,7 @@ def test_mcap_round_trip_through_the_ros2_reader(panda_qp, tmp_path):
         quat = [[p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w] for p in poses]
         np.testing.assert_allclose(Rotation.from_quat(quat).as_matrix(), traj.targets.rot[:, a], atol=1e-12)
     assert '"violation": null' in topics["/hlik/info"][0][1].data
+    assert f'"braking_frames": {stop.n_frames}' in topics["/hlik/info"][0][1].data and stop.n_frames > 0
 
 
 def test_mcap_reads_as_a_ros2_bag(panda_qp, tmp_path):
@@ -170,6 +181,7 @@ def test_mcap_reads_as_a_ros2_bag(panda_qp, tmp_path):
 
     robot, traj = panda_qp
     path = export(traj, robot, tmp_path / "t.mcap", "mcap")
+    traj, _ = brought_to_rest(traj, robot)  # what an export writes: the take, then its braking
     n, got = traj.n_frames, {}
     with AnyReader([path], default_typestore=get_typestore(Stores.ROS2_HUMBLE)) as bag:
         types = {c.topic: (c.msgtype, c.msgcount) for c in bag.connections}
@@ -215,7 +227,9 @@ def test_lerobot_round_trip_gives_back_names_times_state_and_action(panda_qp, tm
 
     robot, traj = panda_qp
     folder = export(traj, robot, tmp_path / "take_lerobot", "lerobot")
+    traj, stop = brought_to_rest(traj, robot)  # what an export writes: the take, then its braking
     info = json.loads((folder / "meta" / "info.json").read_text())
+    assert info["hlik_braking_frames"] == stop.n_frames > 0
     assert info["codebase_version"] == "v3.0" and info["fps"] == 100 and info["total_frames"] == traj.n_frames
     assert info["features"]["observation.state"]["names"] == list(robot.joint_names)
     data = pq.read_table(folder / info["data_path"].format(chunk_index=0, file_index=0)).to_pydict()

@@ -13,6 +13,11 @@ from hlik.run_spec import EXPORT_FORMATS
 from hlik.util.errors import HlikError
 
 
+def braked(frames: int, period: float) -> str:
+    """What an export's message says of the braking frames it added (none: nothing)."""
+    return f" and {frames} more ({frames * period:.2f} s) braking the joints to rest" if frames else ""
+
+
 def export(
     trajectory: Annotated[Path, typer.Argument(help="Trajectory .npz written by `hlik run`.")],
     fmt: Annotated[
@@ -42,9 +47,10 @@ def export(
     ] = False,
     force: Annotated[bool, typer.Option("--force", help="Replace an existing file.", metavar=FLAG)] = False,
 ) -> None:
-    """Export a trajectory (joint angles by name, time, base pose) for a robot's software; refused,
-    naming the first frame and joint, where a controller would reject it (a joint out of range or
-    over its speed, acceleration or effort limit)."""
+    """Export a trajectory (joint angles by name, time, base pose) for a robot's software, with the
+    frames that bring it to rest where it ends moving; refused, naming the first frame and joint,
+    where a controller would reject it (a joint out of range or over its speed, acceleration, jerk
+    or effort limit)."""
     with one_line():
         check_trajectory_file(trajectory)
         if fmt not in EXPORT_FORMATS:  # before the writers' libraries load
@@ -60,10 +66,13 @@ def export(
             raise HlikError(f"{path}: exists; pass --force to replace it, or --out to write elsewhere")
         if path.resolve() == trajectory.resolve():
             raise HlikError(f"{path}: is the trajectory itself; choose another --out")
+        from hlik.braking import braking
+
         traj, robot = trajectory_and_robot(trajectory)
         written = export_trajectory(traj, robot, path, fmt, allow_violations)
+        added = braked(braking(traj, robot).n_frames, traj.period)
     console.print(
-        f"wrote {written} ({fmt}, {traj.n_frames} frames, {robot.dof} joints)",
+        f"wrote {written} ({fmt}, {traj.n_frames} frames{added}, {robot.dof} joints)",
         highlight=False,
         soft_wrap=True,
     )

@@ -43,7 +43,7 @@ def controller_line(c) -> str:
             stop = "a joint without an acceleration limit among them"
         else:
             stop = "no acceleration limits given"
-        parts.append(f"ends moving at up to {j['end_speed']:.2f} rad/s ({stop})")
+        parts.append(f"ends moving at up to {j['end_speed']:.2f} rad/s ({stop}; an export adds the braking)")
     else:
         parts.append("ends at rest")
     return "; ".join(parts)

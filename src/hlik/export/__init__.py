@@ -1,5 +1,6 @@
-"""Stage 7b, exports: a trajectory in the formats robot software reads, checked first against what
-a controller rejects (:mod:`~hlik.export.violations`).
+"""Stage 7b, exports: a trajectory in the formats robot software reads, followed by the frames
+that bring it to rest (:mod:`hlik.braking`) and checked first against what a controller rejects
+(:mod:`~hlik.export.violations`).
 
 - ``csv``: one row per frame, ``time`` then the joints by name and the base pose
   (:mod:`~hlik.export.csvfile`);
@@ -8,7 +9,8 @@ a controller rejects (:mod:`~hlik.export.violations`).
 - ``lerobot``: a LeRobot v3.0 dataset folder, joint positions as state, the next ones as action
   (:mod:`~hlik.export.lerobotfile`).
 
-A format adds one module with a ``write(traj, robot, path, violation)`` function and one line in
+A format adds one module with a ``write(traj, robot, path, violation, braking)`` function (the
+trajectory with its braking frames, and how many of its last frames they are) and one line in
 :data:`WRITERS` (its suffix; "" for a folder).
 """
 
@@ -18,6 +20,7 @@ from collections.abc import Callable, Mapping
 from pathlib import Path
 from types import MappingProxyType
 
+from hlik.braking import brought_to_rest
 from hlik.export import csvfile, lerobotfile, mcapfile
 from hlik.export.violations import first_violation
 from hlik.robot.model import Robot
@@ -26,8 +29,14 @@ from hlik.util.atomic import atomic_folder, atomic_path
 from hlik.util.errors import HlikError
 
 # format -> (writer into a path, file suffix; "" writes a folder)
-WRITERS: Mapping[str, tuple[Callable[[Trajectory, Robot, Path, str | None], None], str]] = MappingProxyType(
-    {"csv": (csvfile.write, ".csv"), "mcap": (mcapfile.write, ".mcap"), "lerobot": (lerobotfile.write, "")}
+WRITERS: Mapping[str, tuple[Callable[[Trajectory, Robot, Path, str | None, int], None], str]] = (
+    MappingProxyType(
+        {
+            "csv": (csvfile.write, ".csv"),
+            "mcap": (mcapfile.write, ".mcap"),
+            "lerobot": (lerobotfile.write, ""),
+        }
+    )
 )
 
 
@@ -41,7 +50,8 @@ def default_path(trajectory: Path, fmt: str) -> Path:
 def export(
     traj: Trajectory, robot: Robot, path: str | Path, fmt: str = "csv", allow_violations: bool = False
 ) -> Path:
-    """Write ``traj`` (of ``robot``) to ``path`` in ``fmt``, whole or not at all.
+    """Write ``traj`` (of ``robot``) to ``path`` in ``fmt``, whole or not at all, followed by the
+    frames that bring it to rest (none where it ends at rest; :func:`hlik.braking.braking`).
 
     A trajectory a controller would reject (:func:`first_violation`: a position, speed,
     acceleration or effort limit broken) is refused unless ``allow_violations``; then the file says
@@ -52,13 +62,14 @@ def export(
     """
     if fmt not in WRITERS:
         raise HlikError(f"unknown export format {fmt!r}; choose one of: {', '.join(WRITERS)}")
+    traj, stop = brought_to_rest(traj, robot)
     violation = first_violation(traj, robot)
     if violation is not None and not allow_violations:
         raise HlikError(f"{path}: not exported: {violation} (--allow-violations writes it anyway)")
     write, suffix = WRITERS[fmt]
     path = Path(path)
     with atomic_path(path) if suffix else atomic_folder(path) as tmp:
-        write(traj, robot, tmp, violation)
+        write(traj, robot, tmp, violation, stop.n_frames)
     return path
 
 

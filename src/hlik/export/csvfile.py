@@ -24,8 +24,9 @@ def base_pose(traj: Trajectory) -> np.ndarray:
     return np.array([*traj.placement.translation, w, x, y, z])
 
 
-def header(traj: Trajectory, robot: Robot, violation: str | None) -> list[str]:
-    """The comment lines (without ``#``) above the table."""
+def header(traj: Trajectory, robot: Robot, violation: str | None, braking: int = 0) -> list[str]:
+    """The comment lines (without ``#``) above the table; ``braking``: how many of the last rows
+    are the frames that bring the joints to rest (:mod:`hlik.braking`)."""
     lines = [
         f"hlik trajectory: robot {robot.name} ({robot.title}), solver {traj.solver}, "
         f"{len(traj.times)} frames at {1.0 / traj.period:g} Hz",
@@ -34,17 +35,23 @@ def header(traj: Trajectory, robot: Robot, violation: str | None) -> list[str]:
         "base pose: world <- robot base (z up, the floor at z = 0), quaternion order w, x, y, z "
         "(scalar first), constant over the take",
     ]
+    if braking:
+        start = traj.times[-braking] - traj.times[0]
+        lines.append(
+            f"the last {braking} rows (from {start:.2f} s) bring the joints to rest within their limits: "
+            "added by hlik after the retargeted motion, which ended moving"
+        )
     if violation is not None:
         lines.append(f"WARNING: exported with --allow-violations; a controller would reject it: {violation}")
     return lines
 
 
-def write(traj: Trajectory, robot: Robot, path: Path, violation: str | None = None) -> None:
+def write(traj: Trajectory, robot: Robot, path: Path, violation: str | None = None, braking: int = 0) -> None:
     """Write ``traj`` to ``path`` (see the module docstring)."""
     base = base_pose(traj)
     times = traj.times - traj.times[0]
     with open(path, "w", newline="", encoding="utf-8") as f:
-        for line in header(traj, robot, violation):
+        for line in header(traj, robot, violation, braking):
             f.write(f"# {line}\n")
         out = csv.writer(f)
         out.writerow(["time", *traj.joint_names, *BASE_COLUMNS])

@@ -49,10 +49,11 @@ def task(traj: Trajectory, robot: Robot) -> str:
     return f"{motion} retargeted to {robot.title} by hlik ({traj.solver})"
 
 
-def write(traj: Trajectory, robot: Robot, path: Path, violation: str | None = None) -> None:
+def write(traj: Trajectory, robot: Robot, path: Path, violation: str | None = None, braking: int = 0) -> None:
     """Write ``traj`` as a dataset into the folder ``path`` (see the module docstring); a
     ``violation`` (exported with ``--allow-violations``) is kept in ``info.json`` as
-    ``hlik_violation``.
+    ``hlik_violation``, and ``braking`` (how many of the last frames bring the joints to rest,
+    :mod:`hlik.braking`) as ``hlik_braking_frames``.
 
     Raises:
         HlikError: a frame rate that is not a whole number of frames per second (LeRobot's fps is
@@ -83,7 +84,7 @@ def write(traj: Trajectory, robot: Robot, path: Path, violation: str | None = No
     _write_table(path / DATA.format(chunk_index=0, file_index=0), _table(columns))
     _write_table(path / "meta" / "tasks.parquet", _tasks(task(traj, robot)))
     _write_table(path / EPISODES.format(chunk_index=0, file_index=0), _episodes(traj, robot, n, stats))
-    info = _info(robot, n, int(round(fps)), features, violation)
+    info = _info(robot, n, int(round(fps)), features, violation) | {"hlik_braking_frames": braking}
     (path / "meta" / "info.json").write_text(json.dumps(info, indent=2) + "\n", encoding="utf-8")
     (path / "meta" / "stats.json").write_text(json.dumps(stats, indent=2) + "\n", encoding="utf-8")
 

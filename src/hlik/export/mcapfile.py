@@ -5,8 +5,10 @@ Foxglove and ``ros2 bag play`` read:
   velocities in rad/s by the differencing of :func:`hlik.executable.joint_velocity`);
 - ``/joint_trajectory``: one ``trajectory_msgs/msg/JointTrajectory`` with every frame as a point
   (positions, velocities, ``time_from_start``), at the first frame's time;
-- ``/hlik/info``: one ``std_msgs/msg/String``, JSON: robot, solver, joint names, and the limit a
-  controller would reject (``null`` unless exported with ``--allow-violations``);
+- ``/hlik/info``: one ``std_msgs/msg/String``, JSON: robot, solver, joint names, the limit a
+  controller would reject (``null`` unless exported with ``--allow-violations``) and
+  ``braking_frames``, how many of the last frames bring the joints to rest (:mod:`hlik.braking`;
+  their targets hold the last frame's);
 - ``/tcp_target/left``, ``/tcp_target/right``: ``geometry_msgs/msg/PoseStamped`` per frame, the
   hands' targets in the robot base frame (``frame_id`` ``base``; quaternions x, y, z, w as ROS has
   them).
@@ -71,7 +73,7 @@ def _stamp(t: float) -> dict:
     return {"sec": ns // 1_000_000_000, "nanosec": ns % 1_000_000_000}
 
 
-def write(traj: Trajectory, robot: Robot, path: Path, violation: str | None = None) -> None:
+def write(traj: Trajectory, robot: Robot, path: Path, violation: str | None = None, braking: int = 0) -> None:
     """Write ``traj`` to ``path`` (see the module docstring); ``violation`` (exported anyway) goes
     into the file's metadata ``hlik``."""
     try:
@@ -86,7 +88,13 @@ def write(traj: Trajectory, robot: Robot, path: Path, violation: str | None = No
         writer = Writer(f)
         schemas = {name: writer.register_msgdef(name, msgdef(name)) for name in MESSAGES}
         state, trajectory, text, pose = (schemas[n] for n in MESSAGES)
-        info = {"robot": robot.name, "solver": traj.solver, "joint_names": names, "violation": violation}
+        info = {
+            "robot": robot.name,
+            "solver": traj.solver,
+            "joint_names": names,
+            "violation": violation,
+            "braking_frames": braking,
+        }
         writer.write_message("/hlik/info", text, {"data": json.dumps(info)}, log_time=0, publish_time=0)
         points = [
             {"positions": q.tolist(), "velocities": v.tolist(), "accelerations": [], "effort": [],

@@ -71,6 +71,13 @@ def scale_subject(motion: HumanMotion, robot: Robot, rule: float | str | None = 
         shoulders, robot_z = shoulder_heights(robot, motion)
         lift = robot_z - factor * shoulders[2]
         feet = f"{abs(lift):.2f} m {'above' if lift > 0 else 'below'} the floor"
-        why = f" to {robot.title}'s arms about its shoulders (subject_scale auto; its feet {feet})"
+        height = lambda z: robot_z + factor * (z - shoulders[2])  # noqa: E731
+        heights = [o.position[:, 2] for o in motion.objects.values() if np.any(np.isfinite(o.position))]
+        if heights:  # the scene moves with the subject: the robot works at the scaled objects
+            z = float(np.nanmedian(np.concatenate(heights)))
+            scene = f"the objects with it, their median height {z:.2f} m -> {height(z):.2f} m"
+        else:
+            scene = f"the hand targets with it: a table 0.90 m high would stand at {height(0.9):.2f} m"
+        why = f" to {robot.title}'s arms about its shoulders (subject_scale auto; its feet {feet}; {scene})"
         return motion.scaled(factor, why, about=shoulders, to=np.array([*shoulders[:2], robot_z]))
     return motion.scaled(factor, "")

@@ -1,0 +1,129 @@
+"""The frames that bring a trajectory to rest, which every export appends.
+
+A trajectory ends where its last frame does, often still moving: a span cut from a take, a hand
+still on its way. A controller given it holds the last position, which asks the whole speed to
+vanish within one frame (2-Panda, QP, Cut take 2–6 s: 1.2 rad/s, 7× its acceleration limit).
+The braking frames go on from the last frame's speed and acceleration, differenced as the
+controller check does (:mod:`hlik.executable`), to rest: zero speed and acceleration, within the
+robot's speed, acceleration and jerk limits (time-optimal; Ruckig, Berscheid & Kröger, RSS 2021).
+All joints come to rest at the same time (Ruckig's synchronisation), so the hands run on about
+along their path rather than each joint stopping at its own time; where that leaves a joint's
+range, each joint brakes on its own at its limits, the shortest way it can (the solvers keep
+every joint able to do that before its stop's margin, :mod:`hlik.solvers.limits`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+import ruckig
+
+from hlik.criteria.angles import joint_difference
+from hlik.problem.targets import HandTargets
+from hlik.robot.model import Robot, tcp_poses
+from hlik.trajectory import Trajectory
+
+# no jerk limit given: Ruckig's acceleration-limited profiles (the acceleration may step, as the
+# solvers' may on such a robot: README "What a controller checks")
+_NO_LIMIT = np.inf
+
+
+@dataclass(frozen=True, eq=False)
+class Braking:
+    """How a trajectory is brought to rest.
+
+    Attributes:
+        q: (K, n) joint angles of the frames after the last, rad, at the trajectory's frame
+            period; K = 0 where it ends at rest.
+        synchronised: Whether the joints come to rest together (False: each on its own, since
+            stopping together leaves a joint's range).
+        inside: Whether every braking frame is inside the joints' ranges (False: no braking
+            within the limits keeps them there; the frames are the per-joint braking all the same).
+    """
+
+    q: np.ndarray
+    synchronised: bool = True
+    inside: bool = True
+
+    @property
+    def n_frames(self) -> int:
+        return len(self.q)
+
+
+def end_state(q: np.ndarray, dt: float, unlimited: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Speed (n,) into the last frame of ``q`` (T, n) and its acceleration (n,), rad/s and rad/s^2,
+    as the controller check differences them (at rest before the first frame)."""
+    padded = np.vstack([q[:1], q[:1], q])
+    v = joint_difference(padded[1:], padded[:-1], unlimited)[-2:] / dt
+    return v[-1], (v[-1] - v[-2]) / dt
+
+
+def braking(traj: Trajectory, robot: Robot) -> Braking:
+    """The frames that bring ``traj`` (of ``robot``) to rest after its last frame (module
+    docstring). Joints without a speed or acceleration limit brake at no limit of their own."""
+    dt, n = traj.period, traj.q.shape[1]
+    unlimited = np.isinf(robot.lower)
+    v, a = end_state(traj.q, dt, unlimited)
+    if not np.any(v) and not np.any(a):
+        return Braking(np.zeros((0, n)))
+    inp = ruckig.InputParameter(n)
+    inp.control_interface = ruckig.ControlInterface.Velocity
+    # the continuous state at the last frame whose mean speed over the last step is v
+    inp.current_position = traj.q[-1].tolist()
+    inp.current_velocity = (v + 0.5 * a * dt).tolist()
+    inp.current_acceleration = a.tolist()
+    inp.target_velocity = [0.0] * n
+    inp.target_acceleration = [0.0] * n
+    inp.max_velocity = _limit(robot.velocity_limit)
+    inp.max_acceleration = _limit(robot.acceleration_limit)
+    inp.max_jerk = _limit(robot.jerk_limit)
+    fallback = None
+    for sync in (ruckig.Synchronization.Phase, ruckig.Synchronization.No):
+        inp.synchronization = sync
+        frames = _sample(inp, n, dt)
+        inside = bool(np.all((frames >= robot.lower) & (frames <= robot.upper)))
+        done = Braking(frames, synchronised=sync == ruckig.Synchronization.Phase, inside=inside)
+        if inside:
+            return done
+        fallback = done
+    assert fallback is not None
+    return fallback
+
+
+def brought_to_rest(traj: Trajectory, robot: Robot) -> tuple[Trajectory, Braking]:
+    """``traj`` followed by its :func:`braking` frames (their TCP poses by forward kinematics, the
+    hand targets held at the last frame's), and the braking. The human motion, reference and
+    diagnostics stay the take's: the braking frames have no human behind them."""
+    stop = braking(traj, robot)
+    if not stop.n_frames:
+        return traj, stop
+    k, last = stop.n_frames, traj.n_frames - 1
+    pos, rot = tcp_poses(robot, stop.q)
+    held = np.r_[np.arange(traj.n_frames), np.full(k, last)]
+    targets = HandTargets(pos=traj.targets.pos[held], rot=traj.targets.rot[held])
+    return (
+        replace(
+            traj,
+            times=np.r_[traj.times, np.round(traj.times[-1] + traj.period * np.arange(1, k + 1), 9)],
+            q=np.vstack([traj.q, stop.q]),
+            tcp_pos=np.concatenate([traj.tcp_pos, pos]),
+            tcp_rot=np.concatenate([traj.tcp_rot, rot]),
+            targets=targets,
+        ),
+        stop,
+    )
+
+
+def _limit(values: np.ndarray) -> list[float]:
+    return np.where(np.isfinite(values), values, _NO_LIMIT).tolist()
+
+
+def _sample(inp: ruckig.InputParameter, n: int, dt: float) -> np.ndarray:
+    """(K, n) the Ruckig profile of ``inp`` at dt, 2 dt, ... until it has come to rest."""
+    path = ruckig.Trajectory(n)
+    result = ruckig.Ruckig(n).calculate(inp, path)
+    if result not in (ruckig.Result.Working, ruckig.Result.Finished):  # pragma: no cover - Ruckig's own
+        raise RuntimeError(f"Ruckig could not brake the trajectory: {result}")
+    k = int(np.ceil(path.duration / dt - 1e-9))
+    return np.array([path.at_time(min((i + 1) * dt, path.duration))[0] for i in range(k)]).reshape(k, n)
