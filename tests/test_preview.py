@@ -51,14 +51,32 @@ def test_the_path_keeps_the_stops_speeds_and_accelerations(panda, seed, scale):
     speed, acceleration = _rates(path)
     assert np.all(speed <= limits.velocity + 1e-6)
     assert np.all(acceleration <= limits.acceleration + 1e-6)
+    np.testing.assert_allclose(path[0], np.clip(q[0], limits.inner_lower, limits.inner_upper), atol=1e-6)
 
 
 def test_a_slow_motion_is_its_own_path(panda):
-    """Well inside every limit, the nearest path is the motion itself (to the spline's error)."""
+    """Well inside every limit, a motion that starts at rest is its own nearest path (to the
+    spline's error)."""
     t = np.arange(200) * DT
-    q = panda.home + 0.1 * np.sin(2 * np.pi * 0.5 * t)[:, None]
+    q = panda.home + 0.05 * (1 - np.cos(2 * np.pi * 0.5 * t))[:, None]  # inside the stops
     path = feasible_path(q, MotionLimits.of(panda, QPSettings()), DT)
     assert np.abs(path - q).max() < 1e-3
+
+
+def test_a_take_cut_mid_motion_gets_a_path_that_starts_at_rest_where_it_does(panda):
+    """The solvers start at the first frame at rest (a span of a take starts mid-motion): the path
+    starts there too, at rest, and joins the motion within its limits, instead of already moving
+    (2-Panda, Cut take 2-6 s: the QP, pulled toward a path moving at 1.2 rad/s from the first frame,
+    caught up with it by swinging the hand about a still target, up to 2 cm for a second)."""
+    t = np.arange(200) * DT
+    q = panda.home + 0.1 * np.sin(2 * np.pi * 0.5 * t)[:, None]  # 0.31 rad/s at the first frame
+    limits = MotionLimits.of(panda, QPSettings())
+    path = feasible_path(q, limits, DT)
+    np.testing.assert_allclose(path[0], q[0], atol=1e-9)
+    speed, acceleration = _rates(path)
+    assert np.all(speed[0] <= HEADROOM * limits.jerk * DT**2 / 6 + 1e-9)  # at rest: a jerk's start
+    assert np.all(acceleration <= limits.acceleration + 1e-6)
+    assert np.abs(path[50:] - q[50:]).max() < 1e-3  # on the motion within half a second
 
 
 def test_the_path_starts_a_fast_move_before_its_target_does(panda):

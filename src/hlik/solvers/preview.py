@@ -87,7 +87,10 @@ def feasible_path(q: np.ndarray, limits: MotionLimits, dt: float, headroom: floa
     Per joint: a uniform cubic B-spline r(t) with knots :data:`KNOT_PERIOD` apart, its control
     points c fitted by least squares to the frames, ``argmin_c Σ_t (r(t) − q_t)²``, subject to the
     stops moved in by their margin, and the speed, acceleration and jerk limits (the last two where
-    given) times ``headroom``, so that a tracker a little off the path can catch up with it. The
+    given) times ``headroom``, so that a tracker a little off the path can catch up with it; it
+    starts at the first frame at rest (``c0 = c1 = c2 = q_0``), as the solvers do: a span of a take
+    starts mid-motion, and a path already moving there had the QP swing the hand about a still
+    target while it caught up (2-Panda, Cut take 2–6 s: up to 2 cm for a second). The
     bounds are linear rows on c: a B-spline and its derivatives are convex combinations of the
     control points and their divided differences, so ``|Δ^k c| ≤ headroom · limit · h^k`` (h the
     knot period) bounds r's k-th derivative everywhere between the knots, not only at them. A sparse
@@ -134,6 +137,11 @@ def _control_points(
             bounds.append(np.array([-step, step]))
     lower = np.concatenate([np.full(r.shape[0], b[0]) for r, b in zip(rows, bounds, strict=True)])
     upper = np.concatenate([np.full(r.shape[0], b[1]) for r, b in zip(rows, bounds, strict=True)])
+    if count > 2:  # at the first frame at rest, as the solvers start there: c0 = c1 = c2 = q_0
+        start = sp.eye(3, count, format="csc")
+        rows.append(start)
+        lower = np.concatenate([lower, np.full(3, np.clip(q[0], *stops))])
+        upper = np.concatenate([upper, np.full(3, np.clip(q[0], *stops))])
     hessian = (basis.T @ basis + 1e-9 * sp.eye(count)).tocsc()  # the end points touch few frames
     solver = osqp.OSQP()
     solver.setup(
