@@ -21,7 +21,8 @@ frames with an elbow more than 5 cm behind the shoulders' frontal plane (either 
 subject's), ``hands`` the hands' distance in front of the shoulders over the subject's (per arm
 length), ``wrists`` the same for the wrists, ``swivel`` the elbows' swivel angle off the subject's
 (degrees, median over the frames, mean over the arms), ``path`` the arm joints' path over the mapped human
-pose's. An approach
+pose's. ``still`` the hands' mean speed in cm/s while their targets move slower than 2 cm/s: a hand
+that swings about a target standing still (a tracker ringing after it caught up). An approach
 ``solver@stack+...`` takes its weights from that stack (``slsqp@paper_opt``).
 
 Run by hand: ``python bench/quality.py [--robots armar3,armar6] [--approaches qp,qp+SYN]
@@ -46,6 +47,7 @@ from hlik.pipeline import run as run_pipeline
 from hlik.robot.state import robot_state
 
 DEFAULT = "jm,jv,qp,qp+SYN,qp+HJA_r,slsqp,slsqp+SYN,slsqp+HJA_r"
+STILL = 0.02  # m/s: a target this slow stands still for the ``still`` column
 
 
 def _setting(text: str) -> bool | int | float:
@@ -85,7 +87,7 @@ def run(
     learned = learn(robot)
     rows, fpos, freach, off, times, capped, speed, contact = [], [], [], [], [], [], [], []
     acc, acc_over, tau, tau_over, stop, floor, fori = [], [], [], [], [], [], []
-    lean, behind, subject_behind, hands, wrists, path, swivel = [], [], [], [], [], [], []
+    lean, behind, subject_behind, hands, wrists, path, swivel, still = [], [], [], [], [], [], [], []
     for take in takes:
         spec = RunSpec(
             motion=take,
@@ -125,6 +127,9 @@ def run(
         wrists.append(np.mean(pj["wrist_front_ratio"]))
         path.append(pj["path_ratio"])
         swivel.append(np.nanmean(pj["swivel_difference_deg"]))
+        target_speed = np.linalg.norm(np.diff(traj.targets.pos, axis=0), axis=-1) / traj.period
+        hand_speed = np.linalg.norm(np.diff(traj.tcp_pos, axis=0), axis=-1) / traj.period
+        still.append(hand_speed[target_speed < STILL])
         fpos.append(err.ravel())
         freach.append(err[reachable(robot, traj)])
         off.append(relative_errors(traj.tcp_pos, traj.tcp_rot, traj.targets.pos, traj.targets.rot)[0])
@@ -156,6 +161,7 @@ def run(
         "wrists": float(np.median(wrists)),
         "path": float(np.median(path)),
         "swivel": float(np.median(swivel)),
+        "still": 100 * float(np.mean(np.concatenate(still))) if np.concatenate(still).size else np.nan,
     }
 
 
@@ -207,6 +213,7 @@ def main() -> None:
         ("wrists", 6),
         ("path", 5),
         ("swivel", 6),
+        ("still", 5),
     )
     print(head + " ".join(f"{name:>{width}s}" for name, width in cols), flush=True)
     for robot_name in args.robots.split(","):
@@ -231,7 +238,7 @@ def main() -> None:
                 f"{r['acc_over']:5.1f} {r['tau']:5.2f} {r['tau_over']:5.1f} {r['stop']:6.1f} "
                 f"{r['floor']:8.2f} {r['lag']:5.1f} {r['fori']:5.1f} {r['fori95']:6.1f} {r['lean']:5.1f} "
                 f"{r['behind']:8.1f} {r['subj_behind']:6.1f} {r['hands']:5.2f} {r['wrists']:6.2f} "
-                f"{r['path']:5.2f} {r['swivel']:6.1f}",
+                f"{r['path']:5.2f} {r['swivel']:6.1f} {r['still']:5.2f}",
                 flush=True,
             )
 
