@@ -13,9 +13,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from hlik import load_motion, load_robot, retarget
-from hlik.braking import braking, brought_to_rest, end_state
+from hlik.braking import braking, brought_to_rest, end_state, hand_travel
 from hlik.executable import controller_checks, joint_velocity
 from hlik.export import first_violation
+from hlik.robot.model import tcp_poses
 from hlik.util.paths import demo_motion_path
 
 ROBOTS = ("armar3", "armar6", "dual_panda")
@@ -36,7 +37,8 @@ def _ending(name: str, q: np.ndarray, v: np.ndarray, a: np.ndarray):
     q1 = q - v * DT
     q0 = q1 - (v - a * DT) * DT
     frames = np.vstack([np.repeat(q0[None], traj.n_frames - 2, axis=0), q1, q])
-    return robot, dataclasses.replace(traj, q=frames)
+    pos, rot = tcp_poses(robot, frames)
+    return robot, dataclasses.replace(traj, q=frames, tcp_pos=pos, tcp_rot=rot)
 
 
 def _limits_from(robot, traj, start: int) -> None:
@@ -77,6 +79,9 @@ def test_a_trajectory_ending_moving_comes_to_rest_within_every_limit(state):
     assert stop.inside and rest.n_frames == traj.n_frames + stop.n_frames
     assert (stop.n_frames > 0) == bool(np.any(v) or np.any(a))
     np.testing.assert_array_equal(rest.q[: traj.n_frames], traj.q)
+    if stop.n_frames:  # the hands' travel while braking, by forward kinematics of the frames
+        moved = np.linalg.norm(tcp_poses(robot, stop.q)[0] - traj.tcp_pos[-1], axis=-1).max()
+        assert hand_travel(rest, stop.n_frames) == pytest.approx(moved, abs=1e-12)
     # from the junction on (before it, the take's own), the last frame held: at rest within the limits
     _limits_from(robot, rest, traj.n_frames - 1)
     # no slower than needed: the fastest joint's speed at its own acceleration limit, plus the
@@ -141,3 +146,19 @@ def test_the_end_check_names_a_trajectory_that_ends_moving_faster_than_a_frame_c
     assert message is not None and message.startswith(f"frame {last}, the last, held after it")
     assert f"joint {robot.joint_names[0]} acceleration 100 rad/s^2" in message
     assert first_violation(brought_to_rest(traj, robot)[0], robot) is None
+
+
+@pytest.mark.parametrize("name", ROBOTS)
+def test_a_joint_at_its_speed_limit_still_accelerating_brakes_within_it(name):
+    """The take's last step at the speed limit, accelerating at nearly its limit into it (within
+    every limit so far, as the differences see it): the braking starts at the limit, not above
+    (a fresh helper's case: 2-Panda's left_joint1 went 2.22 rad/s over its 2.175)."""
+    robot, _ = _take(name)
+    v, a = np.zeros(robot.dof), np.zeros(robot.dof)
+    v[0], a[0] = robot.velocity_limit[0], 0.97 * robot.acceleration_limit[0]
+    q = np.where(np.isfinite(robot.lower), 0.5 * (robot.lower + robot.upper), 0.0)
+    q[0] = robot.lower[0] + 0.25 * (robot.upper[0] - robot.lower[0])  # room ahead to brake
+    robot, traj = _ending(name, q, v, a)
+    rest, stop = brought_to_rest(traj, robot)
+    assert stop.n_frames > 0
+    _limits_from(robot, rest, traj.n_frames - 1)

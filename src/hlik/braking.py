@@ -69,9 +69,12 @@ def braking(traj: Trajectory, robot: Robot) -> Braking:
         return Braking(np.zeros((0, n)))
     inp = ruckig.InputParameter(n)
     inp.control_interface = ruckig.ControlInterface.Velocity
-    # the continuous state at the last frame whose mean speed over the last step is v
+    # the continuous state at the last frame whose mean speed over the last step is v, within the
+    # speed limit: Ruckig's velocity interface does not bound the speed, and a joint at its limit
+    # still accelerating would start braking above it (2-Panda: 2.22 rad/s over 2.175)
+    speed = np.where(np.isfinite(robot.velocity_limit), robot.velocity_limit, np.inf)
     inp.current_position = traj.q[-1].tolist()
-    inp.current_velocity = (v + 0.5 * a * dt).tolist()
+    inp.current_velocity = np.clip(v + 0.5 * a * dt, -speed, speed).tolist()
     inp.current_acceleration = a.tolist()
     inp.target_velocity = [0.0] * n
     inp.target_acceleration = [0.0] * n
@@ -113,6 +116,15 @@ def brought_to_rest(traj: Trajectory, robot: Robot) -> tuple[Trajectory, Braking
         ),
         stop,
     )
+
+
+def hand_travel(rest: Trajectory, frames: int) -> float:
+    """How far, m, either TCP moves on over the last ``frames`` frames of ``rest`` (the braking of
+    :func:`brought_to_rest`) from where the retargeted motion left it; 0 without braking."""
+    if frames <= 0:
+        return 0.0
+    start = rest.tcp_pos[-frames - 1]
+    return float(np.max(np.linalg.norm(rest.tcp_pos[-frames:] - start, axis=-1)))
 
 
 def _limit(values: np.ndarray) -> list[float]:

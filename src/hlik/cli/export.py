@@ -13,9 +13,19 @@ from hlik.run_spec import EXPORT_FORMATS
 from hlik.util.errors import HlikError
 
 
-def braked(frames: int, period: float) -> str:
-    """What an export's message says of the braking frames it added (none: nothing)."""
-    return f" and {frames} more ({frames * period:.2f} s) braking the joints to rest" if frames else ""
+def braked(traj, robot) -> str:
+    """What an export's message says of the braking frames it adds to ``traj`` (none: nothing): how
+    many, how long and how far the hands move on (:mod:`hlik.braking`)."""
+    from hlik.braking import brought_to_rest, hand_travel
+
+    rest, stop = brought_to_rest(traj, robot)
+    if not stop.n_frames:
+        return ""
+    travel = 100 * hand_travel(rest, stop.n_frames)
+    return (
+        f", then {stop.n_frames} frames ({stop.n_frames * traj.period:.2f} s) braking the joints to rest, "
+        f"the hands moving on up to {travel:.1f} cm"
+    )
 
 
 def export(
@@ -66,13 +76,11 @@ def export(
             raise HlikError(f"{path}: exists; pass --force to replace it, or --out to write elsewhere")
         if path.resolve() == trajectory.resolve():
             raise HlikError(f"{path}: is the trajectory itself; choose another --out")
-        from hlik.braking import braking
-
         traj, robot = trajectory_and_robot(trajectory)
         written = export_trajectory(traj, robot, path, fmt, allow_violations)
-        added = braked(braking(traj, robot).n_frames, traj.period)
+        added = braked(traj, robot)
     console.print(
-        f"wrote {written} ({fmt}, {traj.n_frames} frames{added}, {robot.dof} joints)",
+        f"wrote {written} ({fmt}, {traj.n_frames} frames{added}; {robot.dof} joints)",
         highlight=False,
         soft_wrap=True,
     )

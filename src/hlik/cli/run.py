@@ -301,7 +301,6 @@ def _export(result: RunResult, npz: Path, fmt: str) -> None:
     """``hlik export NPZ --format FMT --force`` of the run just written (a run's default names are
     its own, so an export of an earlier run of the same name is replaced with it); a refusal is a
     warning, the run's own files stand, with the command that writes it anyway."""
-    from hlik.braking import braking
     from hlik.cli.export import braked
     from hlik.export import default_path, export
 
@@ -315,8 +314,7 @@ def _export(result: RunResult, npz: Path, fmt: str) -> None:
             )
             warn([f"{refused}; to write it anyway: {command}"])
             return
-    frames = braked(braking(result.trajectory, result.robot).n_frames, result.trajectory.period)
-    console.print(f"exported: {written} ({fmt}{frames})", soft_wrap=True)
+    console.print(f"exported: {written} ({fmt}{braked(result.trajectory, result.robot)})", soft_wrap=True)
 
 
 def _priority(settings: object) -> str:

@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from hlik.braking import hand_travel
 from hlik.robot.model import Robot
 from hlik.trajectory import Trajectory
 
@@ -38,8 +39,9 @@ def header(traj: Trajectory, robot: Robot, violation: str | None, braking: int =
     if braking:
         start = traj.times[-braking] - traj.times[0]
         lines.append(
-            f"the last {braking} rows (from {start:.2f} s) bring the joints to rest within their limits: "
-            "added by hlik after the retargeted motion, which ended moving"
+            f"braking rows: the last {braking} (from {start:.2f} s) bring the joints to rest within their "
+            "limits, added by hlik after the retargeted motion, which ended moving (the hands move on "
+            f"up to {100 * hand_travel(traj, braking):.1f} cm)"
         )
     if violation is not None:
         lines.append(f"WARNING: exported with --allow-violations; a controller would reject it: {violation}")
