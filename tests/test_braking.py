@@ -54,6 +54,14 @@ def _limits_from(robot, traj, start: int) -> None:
     assert np.all((traj.q >= robot.lower) & (traj.q <= robot.upper))
 
 
+def _middle(robot) -> np.ndarray:
+    """(n,) each joint's mid-range, rad (0 for a joint without stops)."""
+    middle = np.zeros(robot.dof)
+    limited = np.isfinite(robot.lower)
+    middle[limited] = 0.5 * (robot.lower[limited] + robot.upper[limited])
+    return middle
+
+
 @st.composite
 def _end_states(draw):
     name = draw(st.sampled_from(ROBOTS))
@@ -62,7 +70,7 @@ def _end_states(draw):
     unit = lambda: np.array(draw(st.lists(st.floats(-1, 1), min_size=n, max_size=n)))  # noqa: E731
     limited = np.isfinite(robot.lower)
     width = np.where(limited, robot.upper - robot.lower, 2 * np.pi)
-    middle = np.where(limited, 0.5 * (robot.lower + robot.upper), 0.0)
+    middle = _middle(robot)
     q = middle + 0.25 * width * unit()  # in the middle half of each range
     # slow enough to brake within a quarter of the range at half the acceleration limit
     v_max = np.minimum(robot.velocity_limit, np.sqrt(0.25 * width * robot.acceleration_limit))
@@ -100,7 +108,7 @@ def test_joints_moving_and_accelerating_along_one_line_stop_on_it(name):
     rng = np.random.default_rng(3)
     direction = rng.normal(size=robot.dof)
     direction *= 0.3 * np.min(robot.velocity_limit / np.abs(direction))
-    q = np.where(np.isfinite(robot.lower), 0.5 * (robot.lower + robot.upper), 0.0)
+    q = _middle(robot)
     robot, traj = _ending(name, q, direction, -2.0 * direction)
     stop = braking(traj, robot)
     assert stop.synchronised and stop.n_frames > 1
@@ -156,7 +164,7 @@ def test_a_joint_at_its_speed_limit_still_accelerating_brakes_within_it(name):
     robot, _ = _take(name)
     v, a = np.zeros(robot.dof), np.zeros(robot.dof)
     v[0], a[0] = robot.velocity_limit[0], 0.97 * robot.acceleration_limit[0]
-    q = np.where(np.isfinite(robot.lower), 0.5 * (robot.lower + robot.upper), 0.0)
+    q = _middle(robot)
     q[0] = robot.lower[0] + 0.25 * (robot.upper[0] - robot.lower[0])  # room ahead to brake
     robot, traj = _ending(name, q, v, a)
     rest, stop = brought_to_rest(traj, robot)
