@@ -314,7 +314,9 @@ def _export(result: RunResult, npz: Path, fmt: str) -> None:
             )
             warn([f"{refused}; to write it anyway: {command}"])
             return
-    console.print(f"exported: {written} ({fmt}{braked(result.trajectory, result.robot)})", soft_wrap=True)
+    traj = result.trajectory
+    added = braked(traj, result.robot)
+    console.print(f"exported: {written} ({fmt}, {traj.n_frames} frames{added})", soft_wrap=True)
 
 
 def _priority(settings: object) -> str:
