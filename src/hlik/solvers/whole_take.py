@@ -31,10 +31,13 @@ posture. The take ends in
 the solver's own last two frames, from which the solvers keep the joints able to brake before their
 stops' margins. A step is kept only if the merit (the objective's terms as they are at the step)
 falls, no hand ends further off than its rows' box corner and a band more (the curvature the rows
-do not see), no torque ends above ``torque_fraction`` of its effort (or above where it was) and no
-pair closer than half the margin (or than it was); else the trust region halves. The rows are kept to
-Clarabel's tolerance; ``headroom`` leaves 1 % for it. A solver's motion that breaks a limit (JM)
-keeps breaking it no more than it did: :func:`hlik.run_spec.RunSpec.check` refuses JM.
+do not see), no torque ends above ``torque_fraction`` of its effort (or above what the solver's
+run asked) by more than :data:`TORQUE_TOLERANCE` of it, and no pair closer than half the margin (or
+than it was); else the trust region halves, but a step refused for its torques alone is first
+solved again with the torque rows shifted by what they missed (a second-order correction). The
+rows are kept to Clarabel's tolerance; ``headroom`` leaves 1 % for it. A solver's motion that
+breaks a limit (JM) keeps breaking it no more than it did: :func:`hlik.run_spec.RunSpec.check`
+refuses JM.
 
 The figures behind the defaults are in the README ("The whole take at once").
 """
