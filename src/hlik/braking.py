@@ -21,12 +21,9 @@ import ruckig
 
 from hlik.criteria.angles import joint_difference
 from hlik.problem.targets import HandTargets
+from hlik.robot.dynamics import motion_rates
 from hlik.robot.model import Robot, tcp_poses
 from hlik.trajectory import Trajectory
-
-# no jerk limit given: Ruckig's acceleration-limited profiles (the acceleration may step, as the
-# solvers' may on such a robot: README "What a controller checks")
-_NO_LIMIT = np.inf
 
 
 @dataclass(frozen=True, eq=False)
@@ -53,10 +50,10 @@ class Braking:
 
 def end_state(q: np.ndarray, dt: float, unlimited: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Speed (n,) into the last frame of ``q`` (T, n) and its acceleration (n,), rad/s and rad/s^2,
-    as the controller check differences them (at rest before the first frame)."""
-    padded = np.vstack([q[:1], q[:1], q])
-    v = joint_difference(padded[1:], padded[:-1], unlimited)[-2:] / dt
-    return v[-1], (v[-1] - v[-2]) / dt
+    as the controller check differences them (:func:`~hlik.robot.dynamics.motion_rates`, at rest
+    before the first frame)."""
+    velocity, _, accel = motion_rates(joint_difference(q[1:], q[:-1], unlimited), dt, len(q))
+    return velocity[-1], accel[-2] if len(q) > 1 else accel[-1]  # one frame: at rest
 
 
 def braking(traj: Trajectory, robot: Robot) -> Braking:
@@ -72,26 +69,24 @@ def braking(traj: Trajectory, robot: Robot) -> Braking:
     # the continuous state at the last frame whose mean speed over the last step is v, within the
     # speed limit: Ruckig's velocity interface does not bound the speed, and a joint at its limit
     # still accelerating would start braking above it (2-Panda: 2.22 rad/s over 2.175)
-    speed = np.where(np.isfinite(robot.velocity_limit), robot.velocity_limit, np.inf)
+    speed = robot.velocity_limit
     inp.current_position = traj.q[-1].tolist()
     inp.current_velocity = np.clip(v + 0.5 * a * dt, -speed, speed).tolist()
     inp.current_acceleration = a.tolist()
     inp.target_velocity = [0.0] * n
     inp.target_acceleration = [0.0] * n
-    inp.max_velocity = _limit(robot.velocity_limit)
-    inp.max_acceleration = _limit(robot.acceleration_limit)
-    inp.max_jerk = _limit(robot.jerk_limit)
-    fallback = None
+    # limits not given are inf: without a jerk limit, Ruckig's acceleration-limited profiles (the
+    # acceleration may step, as the solvers' may on such a robot: README "What a controller checks")
+    inp.max_velocity = speed.tolist()
+    inp.max_acceleration = robot.acceleration_limit.tolist()
+    inp.max_jerk = robot.jerk_limit.tolist()
     for sync in (ruckig.Synchronization.Phase, ruckig.Synchronization.No):
         inp.synchronization = sync
         frames = _sample(inp, n, dt)
         inside = bool(np.all((frames >= robot.lower) & (frames <= robot.upper)))
-        done = Braking(frames, synchronised=sync == ruckig.Synchronization.Phase, inside=inside)
         if inside:
-            return done
-        fallback = done
-    assert fallback is not None
-    return fallback
+            break
+    return Braking(frames, synchronised=sync == ruckig.Synchronization.Phase, inside=inside)
 
 
 def brought_to_rest(traj: Trajectory, robot: Robot) -> tuple[Trajectory, Braking]:
@@ -125,10 +120,6 @@ def hand_travel(rest: Trajectory, frames: int) -> float:
         return 0.0
     start = rest.tcp_pos[-frames - 1]
     return float(np.max(np.linalg.norm(rest.tcp_pos[-frames:] - start, axis=-1)))
-
-
-def _limit(values: np.ndarray) -> list[float]:
-    return np.where(np.isfinite(values), values, _NO_LIMIT).tolist()
 
 
 def _sample(inp: ruckig.InputParameter, n: int, dt: float) -> np.ndarray:

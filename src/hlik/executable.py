@@ -171,14 +171,22 @@ def joint_velocity(traj: Trajectory, robot: Robot) -> np.ndarray:
     return motion_rates(joint_difference(q[1:], q[:-1], np.isinf(robot.lower)), dt, len(q))[0]
 
 
+def joint_jerks(accel: np.ndarray, dt: float) -> np.ndarray:
+    """(T, n) each joint's jerk into each frame's acceleration from the last, rad/s^3, from the
+    accelerations (T, n) of :func:`~hlik.robot.dynamics.motion_rates` (0 at the first frame, and
+    at the last, whose acceleration is 0 by that convention, not a jerk)."""
+    jerks = np.zeros_like(accel)
+    if len(accel) > 2:
+        jerks[1:-1] = np.diff(accel[:-1], axis=0) / dt
+    return jerks
+
+
 def controller_checks(traj: Trajectory, robot: Robot) -> ControllerChecks:
     """The :class:`ControllerChecks` of ``traj`` on ``robot``."""
     q, dt = traj.q, traj.period
     unlimited = np.isinf(robot.lower)
     velocity, central, accel = motion_rates(joint_difference(q[1:], q[:-1], unlimited), dt, len(q))
-    jerks = np.zeros_like(q)  # (T, n): into each frame's acceleration from the last
-    if len(q) > 2:
-        jerks[1:-1] = np.diff(accel[:-1], axis=0) / dt
+    jerks = joint_jerks(accel, dt)
     jerk = np.max(np.abs(jerks), axis=1, initial=0.0)
     limits = robot.jerk_limit if np.any(np.isfinite(robot.jerk_limit)) else np.ones(robot.dof)
     jerk_joint = robot.joint_names[int(np.argmax(np.max(np.abs(jerks), axis=0) / limits))] if q.size else ""

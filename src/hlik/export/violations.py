@@ -11,7 +11,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from hlik.executable import controller_checks, joint_velocity
+from hlik.executable import controller_checks, joint_jerks, joint_velocity
 from hlik.robot.model import Robot
 from hlik.trajectory import Trajectory
 
@@ -35,9 +35,7 @@ def first_violation(traj: Trajectory, robot: Robot) -> str | None:
     slack = TOLERANCE * np.maximum(1.0, np.abs(np.stack([robot.lower, robot.upper])))
     below, above = q < robot.lower - slack[0], q > robot.upper + slack[1]
     acc, tau = np.abs(checks.acceleration), np.abs(checks.torque)
-    jerk = np.zeros_like(acc)  # into each frame's acceleration from the last, as the check's
-    jerk[1:] = np.abs(np.diff(checks.acceleration, axis=0)) / traj.period
-    jerk[-1] = 0.0  # the held frame's acceleration is 0 by the check's convention, not a jerk
+    jerk = np.abs(joint_jerks(checks.acceleration, traj.period))
     with np.errstate(invalid="ignore", divide="ignore"):
         tests = (
             ("position", q, below | above, np.where(below, robot.lower, robot.upper), "rad"),

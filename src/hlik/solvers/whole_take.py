@@ -247,9 +247,9 @@ class _Fixed:
             bounds, rad per frame (those with a finite limit).
         effort: (n,) the effort limits, N m; ``limited`` the joints with one.
         strength: (T, k) the torques a step may end at, N m, on the ``limited`` joints: their
-            fraction of the effort, or what the run asked where it asked more, and
-            :data:`TORQUE_TOLERANCE` of the effort (not where the last step ended: that let a
-            take creep over).
+            fraction of the effort, or what the run asked where it asked more (not where the last
+            step ended: that let a take creep over); refine allows :data:`TORQUE_TOLERANCE` of the
+            effort more.
         band: (T, 2, 3) each hand's box per axis, m: the band, or as far off as the run left it.
         reach: (T, 2) how far off each hand may end, m.
         smooth: (T n, T n) the smoothness term's Hessian on the change to the run.
@@ -305,7 +305,8 @@ def refine(problem: Problem, q: np.ndarray, settings: WholeTakeSettings | None =
         # no hand beyond its reach, no torque above the fraction of its effort (or above what the
         # run asked), no pair closer than half the margin (or than it was)
         limited = fixed.limited
-        strong = np.all(np.abs(at_trial.torque[:, limited]) <= fixed.strength)
+        tolerance = TORQUE_TOLERANCE * fixed.effort[limited]
+        strong = np.all(np.abs(at_trial.torque[:, limited]) <= fixed.strength + tolerance)
         within = np.all(np.linalg.norm(at_trial.position, axis=-1) <= fixed.reach)
         trial_cost = _merit(at_trial, trial, fixed, s)
         safe = strong and within and at_trial.closest >= min(0.5 * s.collision_margin, lin.closest)
@@ -371,8 +372,7 @@ def _fixed(robot: Robot, run: np.ndarray, lin: Linearisation, dt: float, s: Whol
         rates=rates,
         effort=robot.effort_limit,
         limited=limited,
-        strength=np.maximum(s.torque_fraction * effort, np.abs(lin.torque[:, limited]))
-        + TORQUE_TOLERANCE * effort,
+        strength=np.maximum(s.torque_fraction * effort, np.abs(lin.torque[:, limited])),
         band=band,
         reach=np.linalg.norm(band, axis=-1) + s.position_band,
         smooth=(s.smoothness * (second.T @ second)).tocsr(),
@@ -469,8 +469,7 @@ def _step(
         if miss is None:
             keep(torque_rows, value[watched], -allowed, allowed)
         else:  # what refine allows without its tolerance, less the miss
-            strength = (fixed.strength - TORQUE_TOLERANCE * fixed.effort[limited]).reshape(-1)
-            cap, shift = strength[watched], miss.reshape(-1)[watched]
+            cap, shift = fixed.strength.reshape(-1)[watched], miss.reshape(-1)[watched]
             rows.extend([torque_rows, -torque_rows])
             upper.extend([cap - value[watched] - shift, cap + value[watched] + shift])
     near = [(t, d, g) for t, (d, g) in enumerate(lin.pairs) if len(d)]
