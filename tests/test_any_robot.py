@@ -3,7 +3,6 @@ example is the Unitree G1 of the pip package example-robot-data (the ``g1`` extr
 
 from __future__ import annotations
 
-import shutil
 from pathlib import Path
 
 import mujoco
@@ -59,10 +58,12 @@ def test_calibrate_writes_the_mapping_the_example_carries(g1, tmp_path):
     assert "matches" in CliRunner().invoke(app, ["calibrate", str(copy)]).output
 
 
-def _armar3_copy(tmp_path: Path, edit) -> Path:
-    """robots/armar3.toml beside a copy of its model, edited by ``edit(text) -> text``."""
+def _armar3_copy(tmp_path: Path, edit, model_edit=lambda m: m) -> Path:
+    """robots/armar3.toml beside a copy of its model, edited by ``edit(text) -> text`` (the model by
+    ``model_edit``)."""
     (tmp_path / "mjcf").mkdir(exist_ok=True)
-    shutil.copy(robots_dir() / "mjcf" / "armar3.xml", tmp_path / "mjcf" / "armar3.xml")
+    model = (robots_dir() / "mjcf" / "armar3.xml").read_text()
+    (tmp_path / "mjcf" / "armar3.xml").write_text(model_edit(model))
     path = tmp_path / "mine.toml"
     path.write_text(edit((robots_dir() / "armar3.toml").read_text()))
     return path
@@ -123,6 +124,42 @@ def test_base_pose_turns_and_lifts_the_whole_robot(tmp_path):
 def test_foreign_model_mistakes_are_one_line_naming_the_file(tmp_path, edit, message):
     with pytest.raises(RobotError, match=message):
         load_robot(str(_armar3_copy(tmp_path, edit)))
+
+
+_ELBOW = '<joint name="Elbow_L" axis="0.965925826 0 -0.258819045" range="-2.146057 0.959931"/>'
+_TCP = '<site name="left_tcp" pos="0 0.13 0" xyaxes="0.258819045 0 0.965925826 0.965925826 0 -0.258819045"/>'
+
+
+def _swap_arms(t: str) -> str:
+    swapped = t.replace("[arms.left]", "[arms.x]").replace("[arms.right]", "[arms.left]")
+    return swapped.replace("[arms.x]", "[arms.right]")
+
+
+@pytest.mark.parametrize(
+    ("edit", "model_edit", "message"),
+    [
+        (lambda t: t, lambda m: m.replace('range="-2.146057 0.959931"', 'range="-122.96 55.0"'),
+         r"armar3.xml: joint Elbow_L: range -122.96 to 55 rad, 178 rad wide: degrees"),
+        (lambda t: t.replace("unlimited_joints = []\n", ""), lambda m: m.replace(_ELBOW, _ELBOW.replace(
+            ' range="-2.146057 0.959931"', "")),
+         r"mine.toml: the model gives Elbow_L no range; give it one, or list it in unlimited_joints"),
+        (_swap_arms, lambda m: m,
+         r"mine.toml: \[arms\] right: Shoulder1_L, .* move left_tcp, the left TCP \(the arms' joint lists "
+         r"swapped\?\)"),
+        (lambda t: t, lambda m: m.replace(_TCP, "").replace(_ELBOW, _ELBOW + _TCP),
+         r"mine.toml: \[arms\] left: Underarm_L, Wrist1_L, Wrist2_L do not move left_tcp"),
+    ],
+)  # fmt: skip
+def test_description_mistakes_that_would_retarget_wrongly_are_refused(tmp_path, edit, model_edit, message):
+    """A range in degrees, a range left out, arms swapped, a TCP on the forearm: one line naming
+    the file and the joint, before anything is retargeted (they had run with every limit off, or
+    ended in a traceback from the manipulability or the calibration)."""
+    toml = (robots_dir() / "armar3.toml").read_text()
+    model = (robots_dir() / "mjcf" / "armar3.xml").read_text()
+    assert edit(toml) != toml or model_edit(model) != model  # the mistake was made
+    path = _armar3_copy(tmp_path, edit, model_edit)
+    with pytest.raises(RobotError, match=message):
+        load_robot(str(path))
 
 
 def test_a_missing_mesh_names_the_urdf_and_the_mesh(tmp_path, g1):

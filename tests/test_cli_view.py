@@ -25,9 +25,10 @@ from conftest import data_file, kit_takes
 from hlik.cli import app
 from hlik.cli.run import _run_tag
 from hlik.criteria.functional import position_error
-from hlik.findings import run_warnings
+from hlik.findings import below_floor, run_warnings
 from hlik.human.load import load_motion
 from hlik.human.mmm_format import write_mmm
+from hlik.problem.placement import Placement
 from hlik.trajectory import load_trajectory
 from hlik.util.errors import SettingsError
 from hlik.util.paths import corpus_setting, tasks_dir
@@ -252,6 +253,27 @@ def _errors(traj) -> dict:
     }
 
 
+# a base 1 m below the hands' targets at the origin: on the floor, the targets above it
+_ON_THE_FLOOR = Placement(np.eye(3), np.array([0.0, 0.0, 1.0]), "given")
+
+
+def test_hand_targets_below_the_floor_are_warned_about_once():
+    """Targets the placement puts under the floor (a stoop, a subject scaled down) get one line
+    with how many frames, how low and where; targets above it none."""
+    n = 50
+    pos, rot = np.zeros((n, 2, 3)), np.broadcast_to(np.eye(3), (n, 2, 3, 3))
+    pos[20:30, 1, 2] = -1.47  # the right hand's 47 cm under the floor for 0.1 s
+    traj = SimpleNamespace(n_frames=n, times=np.arange(n) * 0.01, placement=_ON_THE_FLOOR,
+                           targets=SimpleNamespace(pos=pos, rot=rot))  # fmt: skip
+    assert below_floor(traj) == (
+        "the hand targets go below the floor in 10 of 50 frames, down to -0.47 m (right, 0.20 s): the "
+        "subject reaches lower than the robot can (a stoop, or the scaling to its arms); no hand can "
+        "follow them there"
+    )
+    pos[20:30, 1, 2] = -0.995  # within the 1 cm the floor check allows
+    assert below_floor(traj) == ""
+
+
 @settings(max_examples=40, deadline=None)
 @given(
     n=st.integers(1, 500),
@@ -274,6 +296,8 @@ def test_solver_and_body_warnings_count_frames(
     diag = SimpleNamespace(n_failed=failed, n_unconverged=capped)
     traj = SimpleNamespace(
         n_frames=n,
+        times=np.arange(n) * 0.01,
+        placement=_ON_THE_FLOOR,
         solver=solver,
         tcp_pos=far,
         tcp_rot=rot,
@@ -322,6 +346,8 @@ def _turned_notes(solver: str, turn, scenario: str = "pose") -> list[str]:
     turn(turned)
     traj = SimpleNamespace(
         n_frames=n,
+        times=np.arange(n) * 0.01,
+        placement=_ON_THE_FLOOR,
         solver=solver,
         tcp_pos=pos,
         tcp_rot=turned,

@@ -80,6 +80,15 @@ def test_legacy_walk_reads():
     assert np.all(k.wrist[..., 2] < k.shoulder[..., 2])
 
 
+def test_walking_is_noted_on_the_span_retargeted(takes):
+    """Any format's subject that walks gets the note, from its root; the span where it stands, and
+    the KIT takes at their tables, do not."""
+    walk = load_motion(data_file("kit_ml/00001_mmm.xml"))
+    assert "00001_mmm.xml: motion: the subject walks (1." in walk.walking()
+    assert walk.crop(0.0, 0.3).walking() == ""  # the first steps: under half a metre
+    assert all(load_motion(t).walking() == "" for t in takes)
+
+
 def test_resample_round_trip(takes):
     m = load_motion(takes[1])
     up = m.resample(100.0)

@@ -72,7 +72,9 @@ def braking(traj: Trajectory, robot: Robot) -> Braking:
     speed = robot.velocity_limit
     inp.current_position = traj.q[-1].tolist()
     inp.current_velocity = np.clip(v + 0.5 * a * dt, -speed, speed).tolist()
-    inp.current_acceleration = a.tolist()
+    # likewise within the acceleration limit: a trajectory exported over its limits (--allow-violations)
+    # starting at 20x it would take Ruckig seconds of jerk-limited turning round (1189 rad)
+    inp.current_acceleration = np.clip(a, -robot.acceleration_limit, robot.acceleration_limit).tolist()
     inp.target_velocity = [0.0] * n
     inp.target_acceleration = [0.0] * n
     # limits not given are inf: without a jerk limit, Ruckig's acceleration-limited profiles (the

@@ -69,6 +69,8 @@ def run_warnings(traj: Trajectory, motion: HumanMotion, ev: Evaluation, rate: fl
                     f"{np.percentile(fori[:, i], 95):.0f}° in its worst 5 % of frames (beyond the "
                     "joints' ranges, or traded for the criteria: raise orientation_cost)"
                 )
+    if low := below_floor(traj):
+        notes.append(low)
     if rate == 0 and motion.rate < LOW_RATE:
         notes.append(
             f"--rate 0 keeps the motion's {motion.rate:g} Hz; the criteria's constants assume 100 Hz "
@@ -99,6 +101,24 @@ def run_warnings(traj: Trajectory, motion: HumanMotion, ev: Evaluation, rate: fl
             "the limits)"
         )
     return notes + controller_warnings(c, tracking, share)
+
+
+def below_floor(traj: Trajectory) -> str:
+    """A line naming the hand targets below the robot's floor (world z = 0, the height its base
+    stands at), or ``""``. No hand can follow them there: the subject stooped lower than the
+    robot's placement allows, or the scaling to the robot's arms lowered them (a subject scaled
+    down about its shoulders)."""
+    z = traj.placement.to_world(traj.targets.pos)[..., 2]  # (T, 2)
+    low = z < -BELOW_FLOOR
+    if not low.any():
+        return ""
+    k, side = np.unravel_index(np.argmin(z), z.shape)
+    frames = int(np.count_nonzero(low.any(axis=1)))
+    return (
+        f"the hand targets go below the floor in {frames} of {traj.n_frames} frames, down to "
+        f"{z[k, side]:.2f} m ({('left', 'right')[side]}, {traj.times[k]:.2f} s): the subject reaches lower "
+        "than the robot can (a stoop, or the scaling to its arms); no hand can follow them there"
+    )
 
 
 def controller_warnings(c: ControllerChecks, tracking: bool, share: Callable[[int], str]) -> list[str]:

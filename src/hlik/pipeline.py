@@ -98,6 +98,8 @@ def read_motion(spec: RunSpec, robot: Robot) -> HumanMotion:
             kept = f"{start:g}-{full:.2f} s"
             note = f"{spec.motion_path}: span {start:g}-{stop:g} s cut to {kept} (the take is shorter)"
             motion = replace(motion, notes=(*motion.notes, note))
+    if walks := motion.walking():  # on the span retargeted, before scaling: the subject's own metres
+        motion = replace(motion, notes=(*motion.notes, walks))
     return scale_subject(motion.retimed(spec.time_scale), robot, spec.scale)
 
 

@@ -38,10 +38,15 @@ def header(traj: Trajectory, robot: Robot, violation: str | None, braking: int =
     ]
     if braking:
         start = traj.times[-braking] - traj.times[0]
+        rest = traj.q[-braking:]
+        # the braking keeps the ranges from any state the solvers leave; one exported over its
+        # limits may start beyond what braking can keep
+        inside = bool(np.all((rest >= robot.lower) & (rest <= robot.upper)))
+        within = "limits" if inside else "speed, acceleration and jerk limits, leaving a joint's range"
         lines.append(
             f"braking rows: the last {braking} (from {start:.2f} s) bring the joints to rest within their "
-            "limits, added by hlik after the retargeted motion, which ended moving (the hands move on "
-            f"up to {100 * hand_travel(traj, braking):.1f} cm)"
+            f"{within}, added by hlik after the retargeted motion, which ended moving (the hands move "
+            f"on up to {100 * hand_travel(traj, braking):.1f} cm)"
         )
     if violation is not None:
         lines.append(f"WARNING: exported with --allow-violations; a controller would reject it: {violation}")

@@ -35,7 +35,6 @@ from hlik.util.errors import MotionFormatError
 KEYPOINT_MARKERS = tuple(f"{s}_{p}" for s in SIDES for p in (*ARM_POINTS, *HAND_POINTS))
 ITERATIONS = 30  # IK steps at most per frame; frames converge in 2-5
 STEP_TOL = 1e-6  # rad: a step below it ends the frame
-WALKING = 0.5  # m the shoulders travel horizontally before a take counts as walking
 HAND_ORIENTATION_COST = 0.1  # per rad against 1 per m: a hand frame 10° off weighs like 1.7 cm
 
 
@@ -205,7 +204,7 @@ def _markers(keypoints: Keypoints) -> dict[str, np.ndarray]:
 
 def _fit_notes(motion: HumanMotion, keypoints: Keypoints, height: float, shoulders0: np.ndarray) -> list[str]:
     """What the fit says of itself: the elbows' and wrists' error, the shoulders' width against the
-    model's, and a subject that walks."""
+    model's (a subject that walks is :meth:`HumanMotion.walking`'s, on the span retargeted)."""
     error = fit_error(motion)
     assert error is not None
     where = f"{keypoints.source}: " if keypoints.source else ""
@@ -219,15 +218,7 @@ def _fit_notes(motion: HumanMotion, keypoints: Keypoints, height: float, shoulde
         f"({keypoints.times[worst]:.2f} s); the subject's shoulders are {100 * abs(wider):.1f} cm "
         f"{'wider' if wider > 0 else 'narrower'} than the model's"
     )
-    notes = [note]
-    mid = keypoints.shoulder.mean(axis=1)
-    travel = float(np.max(np.linalg.norm(mid[:, :2] - mid[0, :2], axis=-1)))
-    if travel > WALKING:
-        notes.append(
-            f"{where}the subject walks ({travel:.1f} m from where it starts); a robot standing in one "
-            "place cannot follow, so expect hands far off their targets (crop the take to where it stands)"
-        )
-    return notes
+    return [note]
 
 
 def _upright_through(left: np.ndarray, right: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -21,6 +21,8 @@ from hlik.human.limits import MAX_FRAMES as MAX_FRAMES  # re-exported: the reade
 from hlik.human.limits import RATE_RANGE as RATE_RANGE
 from hlik.util.errors import SettingsError, UnknownNameError
 
+WALKING = 0.5  # m the root travels horizontally before a take counts as walking
+
 # The 14 MMM arm joints every motion must carry (kinematics.md §1.2), proximal -> distal, in the
 # order of the paper's Table I (s_x, s_y, s_z, e_x, e_z, w_x, w_z=w_y).
 ARM_JOINTS: dict[str, tuple[str, ...]] = {
@@ -119,6 +121,20 @@ class HumanMotion:
     def rate(self) -> float:
         """Median frame rate in Hz (:func:`frame_period`)."""
         return 1.0 / frame_period(self.times)
+
+    def walking(self) -> str:
+        """A note if the subject walks: its root (hips) travels more than :data:`WALKING`
+        horizontally from where it starts (any format: an MMM take's root, a fitted one's through
+        the shoulders); else ``""``. A robot standing in one place cannot follow."""
+        travel = float(np.max(np.linalg.norm(self.root_position[:, :2] - self.root_position[0, :2], axis=-1)))
+        if travel <= WALKING:
+            return ""
+        where = f"{self.source}: " if self.source else ""
+        return (
+            f"{where}motion: the subject walks ({travel:.1f} m from where it starts); a robot standing "
+            "in one place cannot follow, so expect hands far off their targets (crop the take to where "
+            "it stands: --span)"
+        )
 
     def joint(self, name: str) -> np.ndarray:
         """(T,) angles of one joint, by name."""

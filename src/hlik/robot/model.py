@@ -253,6 +253,8 @@ def _build(path: Path, desc: dict, need_mapping: bool = True) -> Robot:
     manip_site, manip_joints = _manipulability(path, desc, model, mjcf, names, arms)
     limited = model.jnt_limited.astype(bool)
     _check_unlimited(path, desc, names, limited)
+    _check_ranges(mjcf, model, names, limited)
+    _check_chains(path, model, arms)
     lower = np.where(limited, model.jnt_range[:, 0], -np.inf)
     upper = np.where(limited, model.jnt_range[:, 1], np.inf)
     home = _home(path, home_angles, names, compiled.welded, lower, upper)
@@ -457,18 +459,61 @@ def _check_mmm(path: Path, joint: str | None, where: str, known: Sequence[str]) 
 
 
 def _check_unlimited(path: Path, desc: dict, names: tuple[str, ...], limited: np.ndarray) -> None:
-    """``unlimited_joints``, where given, must be the model's joints without a range (the model
-    decides; the list says what its author expects, so a model that disagrees is refused)."""
-    if "unlimited_joints" not in desc:
-        return
-    listed = set(_names(path, desc, "unlimited_joints", "the top-level"))
+    """``unlimited_joints`` (none where absent) must be the model's joints without a range (the
+    model decides; the list says what its author expects, so a model that disagrees is refused: a
+    range left out by mistake would let the joint turn without a stop)."""
+    listed = set(_names(path, desc, "unlimited_joints", "the top-level", required=False))
     free = {n for n, lim in zip(names, limited) if not lim}
+    if free and "unlimited_joints" not in desc:
+        wrong = ", ".join(sorted(free))
+        raise RobotError(
+            f"{path}: the model gives {wrong} no range; give it one, or list it in unlimited_joints "
+            "if it turns without a stop"
+        )
     if listed - free:
         wrong = ", ".join(sorted(listed - free))
         raise RobotError(f"{path}: unlimited_joints lists {wrong}, which the model limits (its range)")
     if free - listed:
         wrong = ", ".join(sorted(free - listed))
         raise RobotError(f"{path}: unlimited_joints leaves out {wrong}, which the model leaves unlimited")
+
+
+# rad: no hinge of a robot arm turns further than this between its stops (a UR arm's +-2 pi); a
+# range in degrees read as radians is wider (+-90 deg: 180 rad)
+WIDEST_RANGE = 4.0 * np.pi + 1e-6
+
+
+def _check_ranges(mjcf: Path, model: mujoco.MjModel, names: tuple[str, ...], limited: np.ndarray) -> None:
+    """Every range in the model is at most :data:`WIDEST_RANGE` wide."""
+    width = np.where(limited, model.jnt_range[:, 1] - model.jnt_range[:, 0], 0.0)
+    if np.any(width > WIDEST_RANGE):
+        j = int(np.argmax(width))
+        lo, hi = model.jnt_range[j]
+        raise RobotError(
+            f"{mjcf}: joint {names[j]}: range {lo:g} to {hi:g} rad, {width[j]:.0f} rad wide: degrees in a "
+            'model read in radians? (MJCF <compiler angle="degree">, URDF radians)'
+        )
+
+
+def _check_chains(path: Path, model: mujoco.MjModel, arms: dict[str, tuple[str, ...]]) -> None:
+    """Each TCP site is moved by every joint of its arm in ``[arms]`` and by none of the other's."""
+    for i, side in enumerate(SIDES):
+        site = f"{side}_tcp"
+        body, chain = int(model.site_bodyid[model.site(site).id]), set()
+        while body > 0:
+            chain |= {model.joint(j).name for j in np.flatnonzero(model.jnt_bodyid == body)}
+            body = int(model.body_parentid[body])
+        other = SIDES[1 - i]
+        if crossed := [j for j in arms[other] if j in chain]:
+            raise RobotError(
+                f"{path}: [arms] {other}: {', '.join(crossed)} move {site}, the {side} TCP (the arms' "
+                "joint lists swapped?)"
+            )
+        if missing := [j for j in arms[side] if j not in chain]:
+            raise RobotError(
+                f"{path}: [arms] {side}: {', '.join(missing)} do not move {site} (a TCP site on another "
+                "body, or a joint of another chain)"
+            )
 
 
 def _joint_limits(

@@ -35,6 +35,8 @@ import numpy as np
 from hlik.robot.model import Robot
 from hlik.solvers.settings import LimitSettings
 
+# halvings of a frame's box finding how far a joint may go and still stop within its jerk limit
+JERK_BISECTIONS = 20
 # the share of the deceleration the acceleration limits could give a distance (|grad| @ a_max) that
 # braking before a collision margin counts on: the rest is left to the other rows (stops, torques)
 # and to the pair's normal turning as it closes
@@ -176,26 +178,11 @@ class MotionLimits:
         v1 = (q1 - q2) / dt
         a = self.acceleration
         reach = self.velocity * dt
-        with np.errstate(invalid="ignore"):
-            coast = q1 + v1 * dt
-            # the acceleration this frame may take, rad/s^2: within its limit, within the jerk limit
-            # of the last frame's, and no more toward the speed limit than the jerk limit can take
-            # back before it (the speed's braking, as the position's before the stops); where that
-            # interval is empty (a start beyond it), the acceleration limit alone
-            a_lo, a_hi = -a, a.copy()
-            if q3 is not None and np.any(np.isfinite(self.jerk)):
-                last = (q1 - 2.0 * q2 + q3) / (dt * dt)
-                j_lo = np.maximum(a_lo, last - self.jerk * dt)
-                j_hi = np.minimum(a_hi, last + self.jerk * dt)
-                j_hi = np.minimum(j_hi, braking_speed(self.velocity - v1, self.jerk, dt))
-                j_lo = np.maximum(j_lo, -braking_speed(self.velocity + v1, self.jerk, dt))
-                keep = j_lo <= j_hi
-                a_lo, a_hi = np.where(keep, j_lo, a_lo), np.where(keep, j_hi, a_hi)
-            change_lo = np.where(np.isfinite(a_lo), a_lo * dt * dt, -np.inf)
-            change_hi = np.where(np.isfinite(a_hi), a_hi * dt * dt, np.inf)
+        coast = q1 + v1 * dt
         speed_lo, speed_hi = np.maximum(self.lower, q1 - reach), np.minimum(self.upper, q1 + reach)
-        hard_lo = np.maximum(speed_lo, coast + change_lo)
-        hard_hi = np.minimum(speed_hi, coast + change_hi)
+        with np.errstate(invalid="ignore"):
+            hard_lo = np.maximum(speed_lo, np.where(np.isfinite(a), coast - a * dt * dt, -np.inf))
+            hard_hi = np.minimum(speed_hi, np.where(np.isfinite(a), coast + a * dt * dt, np.inf))
         # a state outside the hard box (a start beyond a stop) keeps at least the speed box
         bad = hard_lo > hard_hi
         hard_lo = np.where(bad, speed_lo, hard_lo)
@@ -205,6 +192,24 @@ class MotionLimits:
         soft_lo = np.maximum(q1 - dt * braking_speed(q1 - self.inner_lower, a, dt), self.inner_lower)
         lower = np.minimum(np.maximum(soft_lo, hard_lo), hard_hi)
         upper = np.maximum(np.minimum(np.maximum(soft_hi, hard_lo), hard_hi), lower)
+        if q3 is not None and np.any(np.isfinite(self.jerk)):
+            # the acceleration within the jerk limit of the last frame's, and no more toward the
+            # speed limit than the jerk limit can take back before it (the speed's braking, as the
+            # position's before the stops). It gives way where the box above leaves it no room:
+            # the stops and the acceleration limit come first, the jerk check reports the overrun
+            last = (q1 - 2.0 * q2 + q3) / (dt * dt)
+            with np.errstate(invalid="ignore"):
+                j_lo = np.maximum(last - self.jerk * dt, -braking_speed(self.velocity + v1, self.jerk, dt))
+                j_hi = np.minimum(last + self.jerk * dt, braking_speed(self.velocity - v1, self.jerk, dt))
+                jerk_lo = np.maximum(lower, np.where(np.isfinite(j_lo), coast + j_lo * dt * dt, -np.inf))
+                jerk_hi = np.minimum(upper, np.where(np.isfinite(j_hi), coast + j_hi * dt * dt, np.inf))
+            # and before the stops' margin, braking as the jerk lets it: the acceleration turns
+            # round at j_max first, so it brakes earlier than at a_max alone
+            up = self._jerk_braking(jerk_lo, jerk_hi, q1, q2, dt, self.inner_upper - q1)
+            down = self._jerk_braking(-jerk_hi, -jerk_lo, -q1, -q2, dt, q1 - self.inner_lower)  # mirrored
+            jerk_lo, jerk_hi = np.maximum(jerk_lo, -down), np.minimum(jerk_hi, up)
+            keep = jerk_lo <= jerk_hi
+            lower, upper = np.where(keep, jerk_lo, lower), np.where(keep, jerk_hi, upper)
         rows = bound = None
         available = a
         if self.has_torque:
@@ -214,6 +219,36 @@ class MotionLimits:
             available = np.minimum(a, spare)
         braking = Braking(q1, q2, available, dt) if np.any(np.isfinite(available)) else None
         return JointBox(lower, upper, rows, bound, braking)
+
+    def _jerk_braking(
+        self, lo: np.ndarray, hi: np.ndarray, q1: np.ndarray, q2: np.ndarray, dt: float, room: np.ndarray
+    ) -> np.ndarray:
+        """(n,) the largest ``q_t`` in [lo, hi] (n,) from which each joint, moving up from ``q1``,
+        ``q2`` (n,) with ``room`` (n,) rad left before its stop's margin, can still stop before it
+        within its acceleration and jerk limits (:func:`jerk_stop_distance`, a frame late); ``lo``
+        where none can, ``inf`` for a joint without a stop or a jerk limit. Bisection: the distance
+        grows with ``q_t``."""
+        active = np.isfinite(room) & np.isfinite(self.jerk) & np.isfinite(self.acceleration)
+        if not active.any():
+            return np.full(len(q1), np.inf)
+        a_max, j_max = self.acceleration[active], self.jerk[active]
+        start = q1[active] + room[active]  # the margin, in q
+
+        def keeps(q: np.ndarray) -> np.ndarray:
+            v = (q - q1[active]) / dt
+            acc = (q - 2.0 * q1[active] + q2[active]) / (dt * dt)
+            return start - q - v * dt - jerk_stop_distance(v, acc, a_max, j_max) >= 0.0
+
+        low, high = lo[active].copy(), np.minimum(hi[active], start)
+        ok = keeps(high)
+        low = np.where(ok, high, low)
+        for _ in range(JERK_BISECTIONS):
+            mid = 0.5 * (low + high)
+            inside = keeps(mid)
+            low, high = np.where(inside, mid, low), np.where(inside, high, mid)
+        out = np.full(len(q1), np.inf)
+        out[active] = np.where(ok, np.minimum(hi[active], start), low)
+        return out
 
     def torque_rows(
         self, q1: np.ndarray, q2: np.ndarray, dt: float, data: mujoco.MjData | None = None
@@ -240,6 +275,20 @@ class MotionLimits:
         spare = np.maximum(effort - np.abs(data.qfrc_bias[idx]), 0.0)
         available[idx] = spare / np.maximum(np.diag(inertia)[idx], 1e-9)
         return np.vstack([m, -m]), np.concatenate([effort - offset, effort + offset]), available
+
+
+def jerk_stop_distance(v: np.ndarray, a: np.ndarray, a_max: np.ndarray, j_max: np.ndarray) -> np.ndarray:
+    """(n,) how far a joint still travels, rad, with speed ``v`` (n,) and acceleration ``a`` (n,)
+    toward a stop, braking time-optimally within ``a_max`` and ``j_max`` (n,): its acceleration
+    turns round at ``j_max`` until the speed is 0 or the deceleration ``a_max``, then holds it.
+    0 for a joint that never moves toward the stop."""
+    disc = a * a + 2.0 * j_max * v
+    t_stop = (a + np.sqrt(np.maximum(disc, 0.0))) / j_max  # the speed is 0 while turning round
+    t_turn = np.maximum(a + a_max, 0.0) / j_max  # the deceleration reaches a_max
+    turning = v * t_stop + 0.5 * a * t_stop**2 - j_max * t_stop**3 / 6.0
+    v_turn = v + a * t_turn - 0.5 * j_max * t_turn**2
+    holding = v * t_turn + 0.5 * a * t_turn**2 - j_max * t_turn**3 / 6.0 + v_turn**2 / (2.0 * a_max)
+    return np.where(disc < 0.0, 0.0, np.maximum(np.where(t_stop <= t_turn, turning, holding), 0.0))
 
 
 def braking_speed(distance: np.ndarray, acceleration: np.ndarray, dt: float) -> np.ndarray:
