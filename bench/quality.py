@@ -123,10 +123,10 @@ def run(
         lean.append(pj["trunk_lean_difference_deg"])
         behind.append(ev.posture.robot.elbow_behind.any(axis=1))
         subject_behind.append(ev.posture.subject.elbow_behind.any(axis=1))
-        hands.append(np.mean(pj["hand_front_ratio"]))
-        wrists.append(np.mean(pj["wrist_front_ratio"]))
+        hands.append(np.nanmean(np.array(pj["hand_front_ratio"], dtype=float)))  # None: nan
+        wrists.append(np.nanmean(np.array(pj["wrist_front_ratio"], dtype=float)))
         path.append(pj["path_ratio"])
-        swivel.append(np.nanmean(pj["swivel_difference_deg"]))
+        swivel.append(np.nanmean(np.array(pj["swivel_difference_deg"], dtype=float)))
         target_speed = np.linalg.norm(np.diff(traj.targets.pos, axis=0), axis=-1) / traj.period
         hand_speed = np.linalg.norm(np.diff(traj.tcp_pos, axis=0), axis=-1) / traj.period
         still.append(hand_speed[target_speed < STILL])

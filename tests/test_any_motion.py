@@ -78,6 +78,7 @@ def test_human_assembly_keypoints_are_fitted(tmp_path):
     motion = load_motion(_assembly(tmp_path, "human_assembly/Task1/Human1/trial1.txt"))
     notes = "\n".join(motion.notes)
     assert "up axis detected as -y" in notes and "stood on one" in notes
+    assert "no knuckles (index, pinky): the hands' orientation is not measured" in notes  # said, not hidden
     error = fit_error(motion)
     assert error is not None and np.median(error) < 0.06
     assert np.all(np.isfinite(motion.joints))
@@ -151,6 +152,7 @@ def test_smplh_joint_positions_with_hands(tmp_path):
     motion = fit_mmm(keypoints)
     assert np.median(fit_error(motion)) < 0.06
     assert "the subject walks" in motion.walking()  # carrying the box across the room
+    assert not any("no knuckles" in n for n in motion.notes)  # SMPL-H gives the knuckles
     hand = forward_kinematics(motion).tcp_rot
     wanted = keypoints.hand_frames()[1]
     angle = np.degrees(Rotation.from_matrix(np.swapaxes(hand, -1, -2) @ wanted).magnitude())

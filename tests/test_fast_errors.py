@@ -149,6 +149,15 @@ def test_formats_are_recognised_by_content_without_their_extension(tmp_path):
         motion_format(amc)
     with pytest.raises(MotionFormatError, match="not a motion format hlik recognises"):
         motion_format(text)
+    renamed = tmp_path / "take.bvh"  # a CMU .amc renamed .bvh: what it is, the file named once
+    renamed.write_text(":FULLY-SPECIFIED\n:DEGREES\n1\nroot 0 0 0 0 0 0\n")
+    with pytest.raises(MotionFormatError) as err:
+        motion_format(renamed)
+    assert str(err.value).startswith(f"{renamed}: not a BVH file: an ASF/AMC (Acclaim) file"), err.value
+    assert str(err.value).count("take.bvh") == 1
+    renamed.write_text("a text file\n")
+    with pytest.raises(MotionFormatError, match=r"not a BVH file \(a BVH begins with HIERARCHY\)"):
+        motion_format(renamed)
     named = tmp_path / "notes.xml"  # named as MMM, but not XML at all
     named.write_text("a text file\n")
     with pytest.raises(MotionFormatError, match="not XML") as err:

@@ -124,3 +124,13 @@ def test_a_take_labelled_mirrored_is_warned_about(tmp_path, table):
     swapped back, but the hands then work behind the subject's back."""
     keypoints = read_keypoints(_write(tmp_path, _swap(table, slice(None))))
     assert any("left and right may be mirrored" in n for n in keypoints.notes)
+
+
+def test_keypoints_no_human_arm_fits_are_refused_naming_the_table(tmp_path, table):
+    """The shoulders' labels swapped for the whole take (the arms' kept): no MMM arm reaches the
+    elbows and wrists (58 cm off on an OMOMO take), so the take is refused in one line rather than
+    retargeted from a fit that is not the subject."""
+    path = _write(tmp_path, _swap(table, slice(None), ("shoulder",)), "shoulders")
+    with pytest.raises(MotionFormatError, match=r"do not fit a human's arms: elbows and wrists \d+ cm off"):
+        load_motion(path)
+    load_motion(_write(tmp_path, table, "clean"))  # the take as labelled fits

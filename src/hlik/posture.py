@@ -90,12 +90,13 @@ class Posture:
 
     def to_json(self) -> dict:
         """The ``"posture"`` object of ``hlik evaluate --json``: medians over the frames, angles in
-        degrees, shares of frames in [0, 1]; per arm [left, right]."""
+        degrees, shares of frames in [0, 1]; per arm [left, right], ``None`` where no frame defines
+        the value (an arm straight throughout has no swivel)."""
         r, s = self.robot, self.subject
 
-        def arms(x: np.ndarray) -> list[float]:  # NaN where an arm has no defined frame (swivel)
+        def arms(x: np.ndarray) -> list[float | None]:  # None (null) where no frame defines it (swivel)
             finite = [c[np.isfinite(c)] for c in x.T]
-            return [float(np.median(c)) if len(c) else float("nan") for c in finite]
+            return [float(np.median(c)) if len(c) else None for c in finite]
 
         return {
             "trunk_lean_deg": float(np.degrees(np.median(r.lean))),

@@ -35,6 +35,9 @@ from hlik.util.errors import MotionFormatError
 KEYPOINT_MARKERS = tuple(f"{s}_{p}" for s in SIDES for p in (*ARM_POINTS, *HAND_POINTS))
 ITERATIONS = 30  # IK steps at most per frame; frames converge in 2-5
 STEP_TOL = 1e-6  # rad: a step below it ends the frame
+# m: a fit whose elbows and wrists are this far off (median) is of mislabelled keypoints, refused
+# (the LEGO and OMOMO takes fit within 1.4-4.5 cm; left and right shoulders swapped: 58 cm)
+FIT_REFUSED = 0.15
 HAND_ORIENTATION_COST = 0.1  # per rad against 1 per m: a hand frame 10° off weighs like 1.7 cm
 
 
@@ -88,7 +91,8 @@ def fit_mmm(keypoints: Keypoints, height: float | None = None) -> HumanMotion:
         (``{side}_{shoulder,elbow,wrist,index,pinky}``) and a note with the fit error.
 
     Raises:
-        MotionFormatError: shoulders that coincide in the horizontal plane (no heading).
+        MotionFormatError: shoulders that coincide in the horizontal plane (no heading); a fit
+            whose elbows and wrists are further off than :data:`FIT_REFUSED` (median).
     """
     height = estimate_height(keypoints) if height is None else height
     _, mid0, shoulders0 = _mmm_ratios()
@@ -107,6 +111,15 @@ def fit_mmm(keypoints: Keypoints, height: float | None = None) -> HumanMotion:
         source=keypoints.source,
         notes=keypoints.notes,
     )
+    error = fit_error(motion)
+    if error is not None and np.median(error) > FIT_REFUSED:
+        raise MotionFormatError(
+            keypoints.source,
+            f"motion: the keypoints do not fit a human's arms: elbows and wrists "
+            f"{100 * np.median(error):.0f} cm off the fitted MMM model (median; a take's fit is within "
+            f"{100 * FIT_REFUSED:.0f} cm); check the [keypoints] table (left and right swapped, a joint "
+            "mislabelled)",
+        )
     return replace(motion, notes=(*motion.notes, *_fit_notes(motion, keypoints, height, shoulders0)))
 
 
@@ -115,7 +128,8 @@ def _root_frames(keypoints: Keypoints, mid0: np.ndarray) -> tuple[np.ndarray, np
     whose shoulders' midpoint sits at ``mid0`` (3,) in the root frame.
 
     Raises:
-        MotionFormatError: shoulders that coincide in the horizontal plane (no heading).
+        MotionFormatError: shoulders that coincide in the horizontal plane (no heading); a fit
+            whose elbows and wrists are further off than :data:`FIT_REFUSED` (median).
     """
     n = keypoints.n_frames
     root_rot, root_pos = np.empty((n, 3, 3)), np.empty((n, 3))
@@ -218,6 +232,12 @@ def _fit_notes(motion: HumanMotion, keypoints: Keypoints, height: float, shoulde
         f"({keypoints.times[worst]:.2f} s); the subject's shoulders are {100 * abs(wider):.1f} cm "
         f"{'wider' if wider > 0 else 'narrower'} than the model's"
     )
+    if keypoints.hand_frames() is None:
+        note += (
+            "; no knuckles (index, pinky): the hands' orientation is not measured, it is the "
+            "forearm's with the wrist straight and the forearm's twist as the fit left it, so the "
+            "robot's hands follow that guess and fORI measures against it"
+        )
     return [note]
 
 

@@ -32,6 +32,10 @@ def motion_format(path: str | Path) -> str:
     text = head.lstrip(b"\xef\xbb\xbf \t\r\n")
     if known == "mmm" and text and not text.startswith(b"<"):
         raise MotionFormatError(path, f"not XML (an MMM file begins with '<'); hlik reads {READS}")
+    if known == "bvh" and text and not text.upper().startswith(b"HIERARCHY"):
+        what = _unsupported("", head)  # what it is instead, where the first bytes tell
+        why = f": {what}" if what != UNKNOWN else " (a BVH begins with HIERARCHY)"
+        raise MotionFormatError(path, f"not a BVH file{why}; hlik reads {READS}")
     if known is not None:
         return known
     if text.startswith(b"<"):
@@ -39,6 +43,9 @@ def motion_format(path: str | Path) -> str:
     if text.upper().startswith(b"HIERARCHY"):
         return "bvh"
     raise MotionFormatError(path, f"{_unsupported(path.suffix.lower(), head)}; hlik reads {READS}")
+
+
+UNKNOWN = "not a motion format hlik recognises"
 
 
 def _unsupported(suffix: str, head: bytes) -> str:
@@ -51,4 +58,4 @@ def _unsupported(suffix: str, head: bytes) -> str:
         return "an FBX file, which hlik does not read (export the take as BVH)"
     if suffix in (".npz", ".npy", ".csv", ".txt"):
         return f"a {suffix} array is read through a keypoint .toml that says what its columns are"
-    return "not a motion format hlik recognises"
+    return UNKNOWN

@@ -227,14 +227,14 @@ def _check_bvh_frames(path: Path, data: Path) -> None:
         raise MotionFormatError(path, f"cannot read {data.name}: {e.strerror or e}") from None
     head, motion, rest = text.partition("\nMOTION")
     said = re.search(r"^\s*Frames:\s*(\d+)\s*$", rest, re.M)
+    where = "" if data == path else f"{data.name}: "  # a .bvh read directly names itself once
     if not motion or said is None:
-        raise MotionFormatError(path, f"{data.name}: not a BVH file (no MOTION section with Frames:)")
+        raise MotionFormatError(path, f"{where}not a BVH file (no MOTION section with Frames:)")
     frames = int(said.group(1))
     _check_frames(path, data, frames)
     timed = re.search(r"^\s*Frame Time:.*$", rest, re.M)
     rows = sum(1 for line in rest[timed.end() :].splitlines() if line.strip()) if timed else 0
     if rows < frames:
-        where = "" if data == path else f"{data.name}: "  # a .bvh read directly names itself once
         raise MotionFormatError(
             path, f"{where}Frames: {frames} but {rows} motion rows (the file ends early); fix Frames:"
         )

@@ -537,12 +537,13 @@ def _joint_limits(
     if inherited:
         attribute = key.removesuffix("_limits")  # velocity_limits: the URDF's <limit velocity>
         source = "; ".join(filter(None, [source, f"URDF <limit {attribute}> of {len(inherited)} joints"]))
+    unknown = [n for n in table if n not in names]  # first: a misspelt name is also one missing
+    if unknown:
+        hint = did_you_mean(unknown[0], names)
+        raise RobotError(f"{path}: [{key}] names joints not in the model: {', '.join(unknown)}{hint}")
     missing = [n for n in names if n not in table]
     if missing:
         raise RobotError(f"{path}: [{key}] has no value for: {', '.join(missing)}")
-    unknown = [n for n in table if n not in names]
-    if unknown:
-        raise RobotError(f"{path}: [{key}] names joints not in the model: {', '.join(unknown)}")
     bad_type = [n for n in names if isinstance(table[n], bool) or not isinstance(table[n], int | float)]
     if bad_type:
         n = bad_type[0]
