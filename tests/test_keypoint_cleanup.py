@@ -134,3 +134,21 @@ def test_keypoints_no_human_arm_fits_are_refused_naming_the_table(tmp_path, tabl
     with pytest.raises(MotionFormatError, match=r"do not fit a human's arms: elbows and wrists \d+ cm off"):
         load_motion(path)
     load_motion(_write(tmp_path, table, "clean"))  # the take as labelled fits
+
+
+def test_a_subject_bending_over_is_said_and_not_floated_in_the_recording(tmp_path, table):
+    """Every keypoint lowered by up to 0.6 m over a third of the take (a subject bending to lift
+    a box, y down in this camera frame): the fit keeps the trunk upright, so it says so; the side
+    layout lifts the human by where it stands, not by the bent frames (it had floated 0.7 m)."""
+    from hlik.recording.scene import human_lift
+
+    bent = table.copy()
+    n = len(table)
+    span = np.arange(n // 3, 2 * n // 3)
+    bent[span, 1::3] += 0.6 * np.sin(np.linspace(0.0, np.pi, len(span)))[:, None] ** 2
+    motion = load_motion(_write(tmp_path, bent, "bent"))
+    said = [note for note in motion.notes if "the subject bends over" in note]
+    assert len(said) == 1 and "sinks up to 0." in said[0], motion.notes
+    standing = load_motion(_write(tmp_path, table, "standing"))
+    assert not any("bends over" in note for note in standing.notes)
+    assert human_lift(motion, "side") == pytest.approx(human_lift(standing, "side"), abs=0.02)

@@ -27,7 +27,7 @@ import mujoco
 import numpy as np
 
 from hlik.human.keypoints import ARM_POINTS, HAND_POINTS, SIDES, Keypoints
-from hlik.human.kinematics import forward_kinematics, human_model, human_spec, shoulder_frame
+from hlik.human.kinematics import forward_kinematics, human_model, human_spec, lowest_points, shoulder_frame
 from hlik.human.motion import ARM_JOINTS, HumanMotion
 from hlik.util.errors import MotionFormatError
 
@@ -35,6 +35,10 @@ from hlik.util.errors import MotionFormatError
 KEYPOINT_MARKERS = tuple(f"{s}_{p}" for s in SIDES for p in (*ARM_POINTS, *HAND_POINTS))
 ITERATIONS = 30  # IK steps at most per frame; frames converge in 2-5
 STEP_TOL = 1e-6  # rad: a step below it ends the frame
+# frames sampled, and m, below the frames it stands highest in, that the fitted body sinks where
+# the subject bends over (OMOMO lifting a box: 0.5-0.7 m; standing takes within a few cm)
+STOOP_SAMPLES = 100
+STOOP_DEPTH = 0.15
 # m: a fit whose elbows and wrists are this far off (median) is of mislabelled keypoints, refused
 # (the LEGO and OMOMO takes fit within 1.4-4.5 cm; left and right shoulders swapped: 58 cm)
 FIT_REFUSED = 0.15
@@ -232,13 +236,23 @@ def _fit_notes(motion: HumanMotion, keypoints: Keypoints, height: float, shoulde
         f"({keypoints.times[worst]:.2f} s); the subject's shoulders are {100 * abs(wider):.1f} cm "
         f"{'wider' if wider > 0 else 'narrower'} than the model's"
     )
+    notes: list[str] = []
+    rows, lowest = lowest_points(motion, STOOP_SAMPLES)
+    sunk = lowest < np.percentile(lowest, 90) - STOOP_DEPTH
+    if sunk.any():
+        notes.append(
+            f"{where}the subject bends over (its keypoints' shoulders drop) in {100 * sunk.mean():.0f} % of "
+            "the take: the fit keeps the trunk upright under the shoulders, so the drawn body sinks up to "
+            f"{-np.min(lowest):.2f} m into the floor at {keypoints.times[rows[np.argmin(lowest)]]:.2f} s and "
+            "its trunk lean reads 0; the hands, which the robot follows, stay on the wrists"
+        )
     if keypoints.hand_frames() is None:
         note += (
             "; no knuckles (index, pinky): the hands' orientation is not measured, it is the "
             "forearm's with the wrist straight and the forearm's twist as the fit left it, so the "
             "robot's hands follow that guess and fORI measures against it"
         )
-    return [note]
+    return [note, *notes]
 
 
 def _upright_through(left: np.ndarray, right: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -86,6 +86,22 @@ def forward_kinematics(motion: HumanMotion) -> HumanKinematics:
     return HumanKinematics(pos[:, 0], pos[:, 1], pos[:, 2], pos[:, 3], rot[:, 3])
 
 
+def lowest_points(motion: HumanMotion, samples: int = 24) -> tuple[np.ndarray, np.ndarray]:
+    """(k,) the frames sampled, ``samples`` spread over the take, and (k,) the lowest height, m,
+    of the MMM body's geometry at each (its axis-aligned boxes: a few mm low at worst)."""
+    model = human_model(motion.height)
+    data = mujoco.MjData(model)
+    rows = np.arange(0, len(motion.times), max(1, -(-len(motion.times) // samples)))
+    lowest = np.empty(len(rows))
+    for k, qpos in enumerate(qpos_trajectory(model, motion.frames(rows))):
+        data.qpos[:] = qpos
+        mujoco.mj_kinematics(model, data)
+        rot = data.geom_xmat.reshape(-1, 3, 3)
+        centre = data.geom_xpos[:, 2] + np.einsum("gj,gj->g", rot[:, 2], model.geom_aabb[:, :3])
+        lowest[k] = np.min(centre - np.einsum("gj,gj->g", np.abs(rot[:, 2]), model.geom_aabb[:, 3:]))
+    return rows, lowest
+
+
 def shoulder_axes(left: np.ndarray, right: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The horizontal unit vectors (..., 3) toward the right shoulder and forward (z x right) of a
     body z up, from its shoulder positions (..., 3) each; the frontal plane's in-plane and normal
