@@ -321,3 +321,23 @@ def test_a_coupling_of_a_solved_joint_is_refused_naming_it(tmp_path, joint1, joi
     ) as e:
         load_robot(str(path))
     assert str(e.value).startswith(str(path)) and "\n" not in str(e.value)
+
+
+def test_calibrate_warns_of_a_tcp_frame_off_the_convention(tmp_path):
+    """A left TCP site turned a quarter turn about its approach axis (x, the palm normal, where y
+    should be): calibrate names the hand and the convention; the bundled model gets no warning."""
+    from typer.testing import CliRunner
+
+    from hlik.cli import app
+
+    turned = _TCP.replace(
+        'xyaxes="0.258819045 0 0.965925826 0.965925826 0 -0.258819045"',
+        'xyaxes="0 1 0 -0.965925826 0 0.258819045"',
+    )
+    path = _armar3_copy(tmp_path, lambda t: t, lambda m: m.replace(_TCP, turned))
+    out = CliRunner().invoke(app, ["calibrate", str(path)])
+    assert out.exit_code == 0, out.output
+    assert "the TCP site's frame is turned left" in out.output and "convention" in out.output, out.output
+    assert "right" not in out.output.split("the TCP site's frame is turned")[1].split("from the MMM")[0]
+    out = CliRunner().invoke(app, ["calibrate", "armar3"])
+    assert "TCP site's frame is turned" not in out.output

@@ -99,6 +99,9 @@ def calibrate(
     _print_calibration(r, cal)
 
 
+TCP_FRAME_OFF = 0.785  # rad (45 deg): a TCP frame further off the MMM hand's is warned about
+
+
 def _print_calibration(r: Robot, cal: Calibration) -> None:
     """The derived mapping, its hand-frame error and dynamic offsets, and whether the TOML has it."""
     import numpy as np
@@ -125,6 +128,16 @@ def _print_calibration(r: Robot, cal: Calibration) -> None:
     print_table(table)
     res = ", ".join(f"{s} {np.degrees(v):.1f}°" for s, v in cal.residual.items())
     console.print(f"hand-frame error of the mapped default pose: {res}")
+    turned = [f"{s} {np.degrees(v):.0f}°" for s, v in cal.residual.items() if v > TCP_FRAME_OFF]
+    if turned:  # a joint mapping leaves a few degrees (ARMAR-6: 16); a site's axes, a quarter turn
+        warn(
+            [
+                f"{r.description}: the TCP site's frame is turned {', '.join(turned)} from the MMM "
+                "hand's in the mapped pose: its axes may not follow hlik's convention (z the approach, "
+                "wrist to fingertips; x the palm normal; robots/README.md), and every run would turn "
+                "that hand so"
+            ]
+        )
     offsets = [(m.joint, m.offset) for m in cal.mapping.joints if m.offset is not None]
     if offsets:
         found = ", ".join(f"{joint} {off.gain:+.3f}·{off.mmm}" for joint, off in offsets)
