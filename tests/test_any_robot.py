@@ -146,14 +146,17 @@ def _swap_arms(t: str) -> str:
         (_swap_arms, lambda m: m,
          r"mine.toml: \[arms\] right: Shoulder1_L, .* move left_tcp, the left TCP \(the arms' joint lists "
          r"swapped\?\)"),
+        (lambda t: t.replace("[effort_limits]", "[effort_limits]\nElbow_L = 0.02", 1).replace(
+            "Elbow_L = 20.0\n", ""), lambda m: m,
+         r"mine.toml: \[effort_limits\] Elbow_L = 0.02 N m cannot hold the home pose against gravity"),
         (lambda t: t, lambda m: m.replace(_TCP, "").replace(_ELBOW, _ELBOW + _TCP),
          r"mine.toml: \[arms\] left: Underarm_L, Wrist1_L, Wrist2_L do not move left_tcp"),
     ],
 )  # fmt: skip
 def test_description_mistakes_that_would_retarget_wrongly_are_refused(tmp_path, edit, model_edit, message):
-    """A range in degrees, a range left out, arms swapped, a TCP on the forearm: one line naming
-    the file and the joint, before anything is retargeted (they had run with every limit off, or
-    ended in a traceback from the manipulability or the calibration)."""
+    """A range in degrees, a range left out, arms swapped, an effort in kN m, a TCP on the forearm:
+    one line naming the file and the joint, before anything is retargeted (they had run with every
+    limit off, or ended in a traceback from the manipulability or the calibration)."""
     toml = (robots_dir() / "armar3.toml").read_text()
     model = (robots_dir() / "mjcf" / "armar3.xml").read_text()
     assert edit(toml) != toml or model_edit(model) != model  # the mistake was made

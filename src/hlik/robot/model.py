@@ -259,6 +259,7 @@ def _build(path: Path, desc: dict, need_mapping: bool = True) -> Robot:
     upper = np.where(limited, model.jnt_range[:, 1], np.inf)
     home = _home(path, home_angles, names, compiled.welded, lower, upper)
     limits = _motion_limits(path, desc, names, compiled)  # checked before the mapping, as the file reads
+    _check_holds_home(path, model, home, names, limits["effort_limit"])
     mapping = _mapping(path, desc, names)
     missing = [j for s in SIDES for j in arms[s] if j not in {m.joint for m in mapping.joints}]
     if missing and need_mapping:
@@ -514,6 +515,24 @@ def _check_chains(path: Path, model: mujoco.MjModel, arms: dict[str, tuple[str, 
                 f"{path}: [arms] {side}: {', '.join(missing)} do not move {site} (a TCP site on another "
                 "body, or a joint of another chain)"
             )
+
+
+def _check_holds_home(
+    path: Path, model: mujoco.MjModel, home: np.ndarray, names: tuple[str, ...], effort: np.ndarray
+) -> None:
+    """Every effort limit holds the robot's home pose against gravity (the bundled robots need at
+    most a third of theirs there): an effort written in another unit (kN m, 1000x too small) would
+    leave the arms hanging at full torque in every frame."""
+    data = mujoco.MjData(model)
+    data.qpos[:] = home
+    mujoco.mj_forward(model, data)
+    ratio = np.abs(data.qfrc_bias) / effort
+    if np.any(ratio > 1.0):
+        j = int(np.argmax(ratio))
+        raise RobotError(
+            f"{path}: [effort_limits] {names[j]} = {effort[j]:g} N m cannot hold the home pose against "
+            f"gravity ({abs(data.qfrc_bias[j]):.3g} N m there): the limits in N m?"
+        )
 
 
 def _joint_limits(
