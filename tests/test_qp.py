@@ -459,3 +459,26 @@ def test_jv_and_slsqp_keep_a_users_mink_limit_as_the_qp_does(name):
     over = traj.q[:, j] > bound - margin + 1e-6
     assert np.all(traj.diagnostics.failed[over]) and traj.diagnostics.failed.mean() < 0.05
     assert np.median(np.linalg.norm(traj.tcp_pos - traj.targets.pos, axis=-1)) < 0.01
+
+
+def test_error_damping_settles_the_joints_chattering_at_targets_out_of_reach():
+    """KIT-ML take 00001 (the subject walks 1.4 m away from ARMAR-6, its hands 20 cm out of reach
+    on average): undamped, the wrists' steps overshoot between iterations and their accelerations
+    turn from one limit to the other frame after frame; the hand targets' own error damping
+    (Sugihara's) settles them, with the hands as far off."""
+    from conftest import data_file
+    from hlik.pipeline import RunSpec, run
+
+    robot = load_robot("armar6")
+    learned = learn(robot)
+    flips, error = {}, {}
+    for damping in (0.0, 5.0):
+        spec = RunSpec(motion=data_file("kit_ml/00001_mmm.xml"), robot="armar6", span=(1.0, 3.5),
+                       settings={"error_damping": damping})  # fmt: skip
+        traj = run(spec, robot=robot, learned=learned).trajectory
+        a = np.diff(traj.q, n=2, axis=0) / traj.period**2
+        flips[damping] = np.mean(np.any(np.abs(np.diff(a, axis=0)) > robot.acceleration_limit, axis=1))
+        error[damping] = np.mean(np.linalg.norm(traj.tcp_pos - traj.targets.pos, axis=-1))
+    assert error[0.0] > 0.1, "the targets should be out of reach"
+    assert flips[5.0] < 0.6 * flips[0.0], flips
+    assert error[5.0] < error[0.0] + 0.01, error

@@ -92,9 +92,14 @@ def build_solver(
 
     posture: list[mink.Task] = []
 
+    def damped(term: Term) -> float:  # the hands' targets damp their own steps out of reach
+        return settings.error_damping if isinstance(term, HAND_TERMS) else 0.0
+
     def stack(*args) -> list[mink.Task]:
         weighted = build_terms(robot, settings, learned, *args)
-        terms = [(t, CriterionTask(robot, t, cost, cache=cache)) for t, cost in weighted]
+        terms = [
+            (t, CriterionTask(robot, t, cost, lm_damping=damped(t), cache=cache)) for t, cost in weighted
+        ]
         # what shapes the arms after the hands: all but the hands' and the smoothness terms
         posture.extend(task for t, task in terms if not isinstance(t, HANDS_FIRST))
         posture.extend(t for t in tasks if not isinstance(t, PathTask) and not is_hand_task(t))

@@ -107,6 +107,10 @@ class QPSettings(SolverSettings):
             the arm toward it; False: the first pass is weighted as the second. ``hands_first``
             implies it.
         damping: Levenberg-Marquardt damping of every step.
+        error_damping: The hand targets' own damping, growing with their error: each hand term
+            adds ``error_damping * |w e|^2`` (its weighted squared error) to the step's Hessian
+            (mink's ``lm_damping``; Sugihara 2011's lambda = E). A target out of reach then damps
+            its steps instead of overshooting between them (0: none).
         max_iter: QP steps per frame at most (the first frame gets ten times more).
         tol: A frame has converged when no joint moves more than this in a step, rad.
         max_step: Bound on any joint's change in one step, rad.
@@ -150,6 +154,9 @@ class QPSettings(SolverSettings):
     # off but on 2-Panda (tasks/ee_pose.toml, README "A strict priority" have the measurements)
     preview_hands_first: bool = False
     damping: float = 1e-6
+    # opt-in: it settles the chatter at targets out of reach, and slows a hand catching up with a
+    # reachable one (README "What the limits leave" has the measurements)
+    error_damping: float = 0.0
     max_iter: int = 20
     tol: float = 1e-4
     max_step: float = 0.2
@@ -170,7 +177,13 @@ class QPSettings(SolverSettings):
     def __post_init__(self):
         check_settings(
             self,
-            at_least_zero=("position_band", "orientation_band", "damping", "elbow_allowance"),
+            at_least_zero=(
+                "position_band",
+                "orientation_band",
+                "damping",
+                "error_damping",
+                "elbow_allowance",
+            ),
             positive=("tol", "max_step"),
             fractions=("collision_gain",),
             counts=("max_iter",),
