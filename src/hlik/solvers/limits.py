@@ -228,26 +228,29 @@ class MotionLimits:
         within its acceleration and jerk limits (:func:`jerk_stop_distance`, a frame late); ``lo``
         where none can, ``inf`` for a joint without a stop or a jerk limit. Bisection: the distance
         grows with ``q_t``."""
+        out = np.full(len(q1), np.inf)
         active = np.isfinite(room) & np.isfinite(self.jerk) & np.isfinite(self.acceleration)
         if not active.any():
-            return np.full(len(q1), np.inf)
+            return out
         a_max, j_max = self.acceleration[active], self.jerk[active]
         start = q1[active] + room[active]  # the margin, in q
+        top = np.minimum(hi[active], start)
 
-        def keeps(q: np.ndarray) -> np.ndarray:
-            v = (q - q1[active]) / dt
-            acc = (q - 2.0 * q1[active] + q2[active]) / (dt * dt)
-            return start - q - v * dt - jerk_stop_distance(v, acc, a_max, j_max) >= 0.0
+        def keeps(q: np.ndarray, k: np.ndarray) -> np.ndarray:
+            j = np.flatnonzero(active)[k]
+            v = (q - q1[j]) / dt
+            acc = (q - 2.0 * q1[j] + q2[j]) / (dt * dt)
+            return start[k] - q - v * dt - jerk_stop_distance(v, acc, a_max[k], j_max[k]) >= 0.0
 
-        low, high = lo[active].copy(), np.minimum(hi[active], start)
-        ok = keeps(high)
-        low = np.where(ok, high, low)
-        for _ in range(JERK_BISECTIONS):
-            mid = 0.5 * (low + high)
-            inside = keeps(mid)
-            low, high = np.where(inside, mid, low), np.where(inside, high, mid)
-        out = np.full(len(q1), np.inf)
-        out[active] = np.where(ok, np.minimum(hi[active], start), low)
+        out[active] = top
+        bind = np.flatnonzero(~keeps(top, slice(None)))  # most frames: no joint near enough to brake
+        if len(bind):
+            low, high = lo[active][bind], top[bind]
+            for _ in range(JERK_BISECTIONS):
+                mid = 0.5 * (low + high)
+                inside = keeps(mid, bind)
+                low, high = np.where(inside, mid, low), np.where(inside, high, mid)
+            out[np.flatnonzero(active)[bind]] = low
         return out
 
     def torque_rows(
