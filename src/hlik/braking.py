@@ -23,7 +23,12 @@ from hlik.criteria.angles import joint_difference
 from hlik.problem.targets import HandTargets
 from hlik.robot.dynamics import motion_rates
 from hlik.robot.model import Robot, tcp_poses
+from hlik.solvers.limits import MotionLimits
+from hlik.solvers.settings import LimitSettings
 from hlik.trajectory import Trajectory
+
+MAX_BRAKING_FRAMES = 1000  # a braking still planned again after these many frames is given up
+AT_REST = 1e-9  # rad: a frame the box moves less than this is the plan's
 
 
 @dataclass(frozen=True, eq=False)
@@ -64,13 +69,29 @@ def braking(traj: Trajectory, robot: Robot) -> Braking:
     v, a = end_state(traj.q, dt, unlimited)
     if not np.any(v) and not np.any(a):
         return Braking(np.zeros((0, n)))
+    for sync in (ruckig.Synchronization.Phase, ruckig.Synchronization.No):
+        plan = _plan(robot, traj.q[-1], v, a, dt, sync)
+        if np.all((plan >= robot.lower) & (plan <= robot.upper)):
+            break
+    frames = _held_to_the_frames(traj.q, plan, robot, dt, sync)
+    inside = bool(np.all((frames >= robot.lower) & (frames <= robot.upper)))
+    return Braking(frames, synchronised=sync == ruckig.Synchronization.Phase, inside=inside)
+
+
+def _plan(
+    robot: Robot, q: np.ndarray, v: np.ndarray, a: np.ndarray, dt: float, sync: ruckig.Synchronization
+) -> np.ndarray:
+    """(K, n) Ruckig's time-optimal profile from position ``q``, speed ``v`` and acceleration ``a``
+    (n,) to rest, sampled at dt, 2 dt, ...; K = 0 at rest."""
+    n = len(q)
     inp = ruckig.InputParameter(n)
     inp.control_interface = ruckig.ControlInterface.Velocity
+    inp.synchronization = sync
     # the continuous state at the last frame whose mean speed over the last step is v, within the
     # speed limit: Ruckig's velocity interface does not bound the speed, and a joint at its limit
     # still accelerating would start braking above it (2-Panda: 2.22 rad/s over 2.175)
     speed = robot.velocity_limit
-    inp.current_position = traj.q[-1].tolist()
+    inp.current_position = q.tolist()
     inp.current_velocity = np.clip(v + 0.5 * a * dt, -speed, speed).tolist()
     # likewise within the acceleration limit: a trajectory exported over its limits (--allow-violations)
     # starting at 20x it would take Ruckig seconds of jerk-limited turning round (1189 rad)
@@ -82,13 +103,30 @@ def braking(traj: Trajectory, robot: Robot) -> Braking:
     inp.max_velocity = speed.tolist()
     inp.max_acceleration = robot.acceleration_limit.tolist()
     inp.max_jerk = robot.jerk_limit.tolist()
-    for sync in (ruckig.Synchronization.Phase, ruckig.Synchronization.No):
-        inp.synchronization = sync
-        frames = _sample(inp, n, dt)
-        inside = bool(np.all((frames >= robot.lower) & (frames <= robot.upper)))
-        if inside:
-            break
-    return Braking(frames, synchronised=sync == ruckig.Synchronization.Phase, inside=inside)
+    return _sample(inp, n, dt)
+
+
+def _held_to_the_frames(
+    q: np.ndarray, plan: np.ndarray, robot: Robot, dt: float, sync: ruckig.Synchronization
+) -> np.ndarray:
+    """(K', n) the Ruckig ``plan`` (K, n) after the trajectory ``q`` (T, n), each frame moved into
+    the box the solvers keep (:class:`~hlik.solvers.limits.MotionLimits`, the stops without a
+    margin); where the box moves one, the rest is planned again from the state it left. Ruckig's
+    continuous profile may leave the limits as the controller check differences them, by a
+    frame's rounding: a joint at its speed limit still accelerating started 1 % over it where the
+    jerk limit binds (a robot at 300 rad/s^3); the box is that differencing's own."""
+    limits = MotionLimits.of(robot, LimitSettings(stop_margin=0.0, torque_limits=False))
+    q3, q2, q1 = np.vstack([np.repeat(q[:1], max(0, 3 - len(q)), axis=0), q[-3:]])  # at rest before
+    out: list[np.ndarray] = []
+    i = 0
+    while i < len(plan) and len(out) < MAX_BRAKING_FRAMES:
+        q3, q2, q1 = q2, q1, limits.box(q1, q2, dt, q3=q3).clip(plan[i])
+        out.append(q1)
+        if np.allclose(q1, plan[i], rtol=0.0, atol=AT_REST):
+            i += 1
+        else:
+            plan, i = _plan(robot, q1, (q1 - q2) / dt, (q1 - 2.0 * q2 + q3) / (dt * dt), dt, sync), 0
+    return np.array(out).reshape(-1, q.shape[1])
 
 
 def brought_to_rest(traj: Trajectory, robot: Robot) -> tuple[Trajectory, Braking]:

@@ -243,7 +243,7 @@ class MotionLimits:
             return start[k] - q - v * dt - jerk_stop_distance(v, acc, a_max[k], j_max[k]) >= 0.0
 
         out[active] = top
-        bind = np.flatnonzero(~keeps(top, slice(None)))  # most frames: no joint near enough to brake
+        bind = np.flatnonzero(~keeps(top, np.arange(len(top))))  # most frames: no joint near enough to brake
         if len(bind):
             low, high = lo[active][bind], top[bind]
             for _ in range(JERK_BISECTIONS):
