@@ -315,3 +315,16 @@ def test_the_readme_python_block_runs(tmp_path, monkeypatch):
     exec(block, {})  # noqa: S102 - the README's own block
     assert (tmp_path / "recordings" / "cut_armar6_jm.npz").is_file()
     assert (tmp_path / "recordings" / "cut_armar6_jm.rrd").is_file()
+
+
+def test_smplh_elbows_labelled_as_the_other_sides_are_refused_naming_the_labels(tmp_path):
+    """OMOMO with the elbows' names swapped: the arms reach across the chest and their length fits
+    no unit; the one line names the labels as well as the units (it had blamed the units alone)."""
+    data = data_file("omomo_holosoma/sub3_largebox_003.npz")
+    names = {"left_shoulder": "L_Shoulder", "right_shoulder": "R_Shoulder", "left_elbow": "R_Elbow",
+             "right_elbow": "L_Elbow", "left_wrist": "L_Wrist", "right_wrist": "R_Wrist"}  # fmt: skip
+    desc = tmp_path / "swapped.toml"
+    table = "\n".join(f'{k} = "{v}"' for k, v in names.items())
+    desc.write_text(f'data = "{data}"\narray = "joint_pos"\nnames = "joint_names"\n[keypoints]\n{table}\n')
+    with pytest.raises(MotionFormatError, match=r"measure .* or check the \[keypoints\] labels"):
+        read_keypoints(desc)

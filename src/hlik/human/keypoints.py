@@ -541,7 +541,8 @@ def _units(path: Path, desc: Mapping, points: Mapping[str, np.ndarray]) -> float
         raise MotionFormatError(
             path,
             f"arms (upper arm + forearm) measure {length:.3g} in the file's units; "
-            f"give units = one of {', '.join(UNITS)}",
+            f"give units = one of {', '.join(UNITS)}, or check the [keypoints] labels (an elbow or "
+            "wrist given as the other side's makes the arms reach across the body)",
         )
     return UNITS[fits[0]]
 
