@@ -291,7 +291,8 @@ def jerk_stop_distance(v: np.ndarray, a: np.ndarray, a_max: np.ndarray, j_max: n
     turning = v * t_stop + 0.5 * a * t_stop**2 - j_max * t_stop**3 / 6.0
     v_turn = v + a * t_turn - 0.5 * j_max * t_turn**2
     holding = v * t_turn + 0.5 * a * t_turn**2 - j_max * t_turn**3 / 6.0 + v_turn**2 / (2.0 * a_max)
-    return np.where(disc < 0.0, 0.0, np.maximum(np.where(t_stop <= t_turn, turning, holding), 0.0))
+    away = (disc < 0.0) | (t_stop < 0.0)  # its speed toward the stop never turns positive again
+    return np.where(away, 0.0, np.maximum(np.where(t_stop <= t_turn, turning, holding), 0.0))
 
 
 def braking_speed(distance: np.ndarray, acceleration: np.ndarray, dt: float) -> np.ndarray:
