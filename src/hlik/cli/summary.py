@@ -53,7 +53,8 @@ def posture_line(p) -> str:
     """The summary's ``posture`` row: the robot's :class:`hlik.posture.Posture` beside the subject's
     (medians; lengths as shares of the arm's length; left / right)."""
     j = p.to_json()
-    pair = lambda key: " / ".join("undefined" if v is None else f"{v:.2f}" for v in j[key])  # noqa: E731
+    shown = lambda v, spec, unit="": "undefined" if v is None else f"{format(v, spec)}{unit}"  # noqa: E731
+    pair = lambda key: " / ".join(shown(v, ".2f") for v in j[key])  # noqa: E731
     percent = lambda key: " / ".join(f"{100 * v:.0f} %" for v in j[key])  # noqa: E731
     return (
         f"trunk lean {j['trunk_lean_deg']:.0f}° (subject {j['subject_trunk_lean_deg']:.0f}°); "
@@ -62,8 +63,7 @@ def posture_line(p) -> str:
         f"(subject {percent('subject_elbow_behind_share')}); hands in front {pair('hand_front_share')} arm "
         f"(subject {pair('subject_hand_front_share')}), wrists {pair('wrist_front_share')} "
         f"(subject {pair('subject_wrist_front_share')}); swivel off the subject's by "
-        f"{' / '.join('undefined' if v is None else f'{v:.0f}°' for v in j['swivel_difference_deg'])}; "
-        f"arm joint path "
+        f"{' / '.join(shown(v, '.0f', '°') for v in j['swivel_difference_deg'])}; arm joint path "
         f"{j['path_ratio']:.2f} of the subject's"
     )
 

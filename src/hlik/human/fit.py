@@ -116,7 +116,8 @@ def fit_mmm(keypoints: Keypoints, height: float | None = None) -> HumanMotion:
         notes=keypoints.notes,
     )
     error = fit_error(motion)
-    if error is not None and np.median(error) > FIT_REFUSED:
+    assert error is not None  # a fitted motion carries its keypoints
+    if np.median(error) > FIT_REFUSED:
         raise MotionFormatError(
             keypoints.source,
             f"motion: the keypoints do not fit a human's arms: elbows and wrists "
@@ -124,7 +125,7 @@ def fit_mmm(keypoints: Keypoints, height: float | None = None) -> HumanMotion:
             f"{100 * FIT_REFUSED:.0f} cm); check the [keypoints] table (left and right swapped, a joint "
             "mislabelled)",
         )
-    return replace(motion, notes=(*motion.notes, *_fit_notes(motion, keypoints, height, shoulders0)))
+    return replace(motion, notes=(*motion.notes, *_fit_notes(motion, keypoints, error, height, shoulders0)))
 
 
 def _root_frames(keypoints: Keypoints, mid0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -132,8 +133,7 @@ def _root_frames(keypoints: Keypoints, mid0: np.ndarray) -> tuple[np.ndarray, np
     whose shoulders' midpoint sits at ``mid0`` (3,) in the root frame.
 
     Raises:
-        MotionFormatError: shoulders that coincide in the horizontal plane (no heading); a fit
-            whose elbows and wrists are further off than :data:`FIT_REFUSED` (median).
+        MotionFormatError: shoulders that coincide in the horizontal plane (no heading).
     """
     n = keypoints.n_frames
     root_rot, root_pos = np.empty((n, 3, 3)), np.empty((n, 3))
@@ -220,11 +220,12 @@ def _markers(keypoints: Keypoints) -> dict[str, np.ndarray]:
     return markers
 
 
-def _fit_notes(motion: HumanMotion, keypoints: Keypoints, height: float, shoulders0: np.ndarray) -> list[str]:
-    """What the fit says of itself: the elbows' and wrists' error, the shoulders' width against the
-    model's (a subject that walks is :meth:`HumanMotion.walking`'s, on the span retargeted)."""
-    error = fit_error(motion)
-    assert error is not None
+def _fit_notes(
+    motion: HumanMotion, keypoints: Keypoints, error: np.ndarray, height: float, shoulders0: np.ndarray
+) -> list[str]:
+    """What the fit says of itself: the elbows' and wrists' ``error`` (T,) (:func:`fit_error`), the
+    shoulders' width against the model's, a subject that bends over, a hand without knuckles (a
+    subject that walks is :meth:`HumanMotion.walking`'s, on the span retargeted)."""
     where = f"{keypoints.source}: " if keypoints.source else ""
     worst = int(np.argmax(error))
     wider = np.median(

@@ -232,25 +232,23 @@ class MotionLimits:
         active = np.isfinite(room) & np.isfinite(self.jerk) & np.isfinite(self.acceleration)
         if not active.any():
             return out
-        a_max, j_max = self.acceleration[active], self.jerk[active]
-        start = q1[active] + room[active]  # the margin, in q
-        top = np.minimum(hi[active], start)
+        start = q1 + room  # the margin, in q
+        out[active] = np.minimum(hi[active], start[active])
 
-        def keeps(q: np.ndarray, k: np.ndarray) -> np.ndarray:
-            j = np.flatnonzero(active)[k]
+        def keeps(q: np.ndarray, j: np.ndarray) -> np.ndarray:  # q (k,) of the joints j (k,)
             v = (q - q1[j]) / dt
             acc = (q - 2.0 * q1[j] + q2[j]) / (dt * dt)
-            return start[k] - q - v * dt - jerk_stop_distance(v, acc, a_max[k], j_max[k]) >= 0.0
+            stop = jerk_stop_distance(v, acc, self.acceleration[j], self.jerk[j])
+            return start[j] - q - v * dt - stop >= 0.0
 
-        out[active] = top
-        bind = np.flatnonzero(~keeps(top, np.arange(len(top))))  # most frames: no joint near enough to brake
-        if len(bind):
-            low, high = lo[active][bind], top[bind]
-            for _ in range(JERK_BISECTIONS):
-                mid = 0.5 * (low + high)
-                inside = keeps(mid, bind)
-                low, high = np.where(inside, mid, low), np.where(inside, high, mid)
-            out[np.flatnonzero(active)[bind]] = low
+        joints = np.flatnonzero(active)
+        bind = joints[~keeps(out[joints], joints)]  # most frames: no joint near enough to brake
+        low, high = lo[bind], out[bind]
+        for _ in range(JERK_BISECTIONS if len(bind) else 0):
+            mid = 0.5 * (low + high)
+            inside = keeps(mid, bind)
+            low, high = np.where(inside, mid, low), np.where(inside, high, mid)
+        out[bind] = low
         return out
 
     def torque_rows(
