@@ -21,6 +21,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from typer.testing import CliRunner
 
+import hlik
 from conftest import data_file, kit_takes
 from hlik.cli import app
 from hlik.cli.run import _run_tag
@@ -607,6 +608,15 @@ def test_the_default_corpus_is_remembered_else_the_shared_takes_else_the_demo(
     assert f"HLIK_DATA={tmp_path / 'no data'} holds no kit_bimanual takes" in fallen.stdout
     monkeypatch.delenv("HLIK_DATA")
     assert corpus_setting() == (beside, "the shared KIT takes")  # unset: the folder beside
+    # from a folder with none beside it, the takes beside the checkout hlik is installed from
+    (tmp_path / "elsewhere" / "deeper").mkdir(parents=True)
+    monkeypatch.chdir(tmp_path / "elsewhere" / "deeper")
+    checkout = Path(hlik.__file__).resolve().parents[2]
+    shared = checkout.parent / "shared" / "motion_data" / "kit_bimanual"
+    if (checkout / "pyproject.toml").is_file() and shared.is_dir():
+        assert corpus_setting() == (shared, "the shared KIT takes")
+    else:  # an installed wheel: no checkout to look beside
+        assert corpus_setting() == (None, "")
 
 
 def test_piped_output_never_breaks_a_path(short_take, tmp_path, monkeypatch):

@@ -119,7 +119,8 @@ CorpusOpt = Annotated[
         help="Folder of MMM motions to learn synergies and the swivel regressor from, or demo (the "
         'bundled synthetic demo). Default: $HLIK_CORPUS, else corpus = "DIR" in ./hlik.toml, else the '
         "corpus the learn command remembered (~/.config/hlik/config.toml), else the shared KIT takes "
-        "(../shared/motion_data/kit_bimanual or $HLIK_DATA), else the demo (warned).",
+        "(../shared/motion_data/kit_bimanual beside the working folder or the checkout, or $HLIK_DATA), "
+        "else the demo (warned).",
         show_default=False,
     ),
 ]

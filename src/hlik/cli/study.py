@@ -35,7 +35,8 @@ if TYPE_CHECKING:
 TakesArg = Annotated[
     Path | None,
     typer.Argument(
-        help="Folder of MMM takes (default: ../shared/motion_data/kit_bimanual if present, "
+        help="Folder of MMM takes (default: ../shared/motion_data/kit_bimanual beside the working "
+        "folder or the checkout, if present, "
         "else the bundled demo).",
         show_default=False,
     ),

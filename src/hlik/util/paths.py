@@ -83,13 +83,20 @@ def user_config() -> Path:
 def shared_takes() -> Path | None:
     """The folder of KIT bimanual takes beside a checkout, if there: ``$HLIK_DATA/kit_bimanual``
     where ``HLIK_DATA`` is set (and nothing else: a mistyped one is not replaced by another
-    folder), else ``../shared/motion_data/kit_bimanual`` from the working folder (the default of
-    ``hlik study`` and, holding takes, of the corpus)."""
+    folder), else ``../shared/motion_data/kit_bimanual`` from the working folder, else from the
+    source checkout hlik is installed from (``pip install -e``), so that a command run in another
+    folder finds the same takes (the default of ``hlik study`` and, holding takes, of the corpus)."""
     data = os.environ.get("HLIK_DATA")
-    folder = (
-        Path(data) / "kit_bimanual" if data else Path.cwd().parent / "shared" / "motion_data" / "kit_bimanual"
-    )
-    return folder if folder.is_dir() else None
+    if data:
+        folder = Path(data) / "kit_bimanual"
+        return folder if folder.is_dir() else None
+    checkout = _PACKAGE.parents[1]  # src/hlik -> the checkout's root, in an editable install
+    roots = [Path.cwd()] + ([checkout] if (checkout / "pyproject.toml").is_file() else [])
+    for root in roots:
+        folder = root.parent / "shared" / "motion_data" / "kit_bimanual"
+        if folder.is_dir():
+            return folder
+    return None
 
 
 def no_shared_takes() -> str:
