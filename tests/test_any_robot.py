@@ -151,10 +151,16 @@ def _swap_arms(t: str) -> str:
          r"mine.toml: \[effort_limits\] Elbow_L = 0.02 N m cannot hold the home pose against gravity"),
         (lambda t: t, lambda m: m.replace(_TCP, "").replace(_ELBOW, _ELBOW + _TCP),
          r"mine.toml: \[arms\] left: Underarm_L, Wrist1_L, Wrist2_L do not move left_tcp"),
+        (lambda t: t.replace("HipYaw = 1.0\n", "HipYaw = 57.3\n", 1).replace("HipPitch = 1.0\n", "HipPitch = 90.0\n", 1),
+         lambda m: m, r"mine.toml: \[velocity_limits\] HipPitch = 90 rad/s is faster than any robot joint .* in "
+         r"degrees\? write rad/s"),
+        (lambda t: t.replace("HipPitch = 10.0\n", "HipPitch = 5730\n", 1), lambda m: m,
+         r"mine.toml: \[acceleration_limits\] HipPitch = 5730 rad/s\^2 is faster than any robot joint"),
     ],
 )  # fmt: skip
 def test_description_mistakes_that_would_retarget_wrongly_are_refused(tmp_path, edit, model_edit, message):
-    """A range in degrees, a range left out, arms swapped, an effort in kN m, a TCP on the forearm:
+    """A range in degrees, a range left out, arms swapped, an effort in kN m, a TCP on the forearm,
+    a speed or an acceleration in degrees:
     one line naming the file and the joint, before anything is retargeted (they had run with every
     limit off, or ended in a traceback from the manipulability or the calibration)."""
     toml = (robots_dir() / "armar3.toml").read_text()

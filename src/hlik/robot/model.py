@@ -259,6 +259,7 @@ def _build(path: Path, desc: dict, need_mapping: bool = True) -> Robot:
     upper = np.where(limited, model.jnt_range[:, 1], np.inf)
     home = _home(path, home_angles, names, compiled.welded, lower, upper)
     limits = _motion_limits(path, desc, names, compiled)  # checked before the mapping, as the file reads
+    _check_plausible(path, names, limits)
     _check_holds_home(path, model, home, names, limits["effort_limit"])
     mapping = _mapping(path, desc, names)
     missing = [j for s in SIDES for j in arms[s] if j not in {m.joint for m in mapping.joints}]
@@ -514,6 +515,24 @@ def _check_chains(path: Path, model: mujoco.MjModel, arms: dict[str, tuple[str, 
             raise RobotError(
                 f"{path}: [arms] {side}: {', '.join(missing)} do not move {site} (a TCP site on another "
                 "body, or a joint of another chain)"
+            )
+
+
+# rad/s, rad/s^2: no robot arm's joint is faster (the G1's wrists, 37 rad/s, are the fastest here;
+# datasheets give speeds in deg/s as often as in rad/s: a Panda's 150 deg/s written as 150 "rad/s")
+FASTEST = {"velocity": 60.0, "acceleration": 2000.0}
+
+
+def _check_plausible(path: Path, names: tuple[str, ...], limits: dict) -> None:
+    """No speed or acceleration limit beyond :data:`FASTEST`: one written in degrees would let
+    every joint move 57x faster than the robot can, with every check passing."""
+    for what, bound in FASTEST.items():
+        values, unit = limits[f"{what}_limit"], "rad/s" if what == "velocity" else "rad/s^2"
+        if np.any(values > bound):
+            j = int(np.argmax(values))
+            raise RobotError(
+                f"{path}: [{what}_limits] {names[j]} = {values[j]:g} {unit} is faster than any robot "
+                f"joint (at most {bound:g} {unit} taken as plausible): in degrees? write {unit}"
             )
 
 
