@@ -745,6 +745,7 @@ def _checks(n: int, **changes):
         torque=np.zeros((n, 1)),
         torque_ratio=np.zeros(n),
         at_stop=np.zeros(n, bool),
+        at_margin=np.zeros((n, 1), bool),
         lowest=np.zeros(n),
         base_height=0.0,
         end_speed=np.zeros(1),

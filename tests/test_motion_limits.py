@@ -21,7 +21,7 @@ from hlik.robot.model import SIDES
 from hlik.solvers import jv, qp, slsqp
 from hlik.solvers.limits import MotionLimits, braking_speed, jerk_stop_distance
 from hlik.solvers.mink_ik import MinkSolver
-from hlik.solvers.settings import LimitSettings
+from hlik.solvers.settings import STOP_MARGIN, LimitSettings
 
 
 def _mink_solve(problem, settings=None):
@@ -292,3 +292,28 @@ def test_hands_sent_into_each_other_brake_before_the_margin(name, solver):
     closest = np.array([_closest_pair(r, x) for x in q])
     assert closest.min() >= min(margin, closest[0]) - 1e-3, (name, solver, closest.min())
     assert closest[5:].min() < 0.05, "the hands should come close"
+
+
+@pytest.mark.parametrize("name", ROBOTS)
+def test_joints_parked_on_the_solvers_margin_are_counted(name):
+    """The controller check counts a joint within 3.5° of a stop (the solvers' 3° margin) per joint,
+    as the margin itself: a joint held at the margin (as the QP holds one against its soft stop) is
+    counted, one a degree further in is not, and JM's joints on their hard stops are counted in both."""
+    r = load_robot(name)
+    motion = demo_motion().crop(1.0, 1.5).resample(100.0)
+    problem = build_problem(motion, r)
+    limited = np.flatnonzero(np.isfinite(r.lower))
+    j, k = limited[0], limited[-1]
+    q = np.tile(r.home, (problem.n_frames, 1))
+    q[10:30, j] = r.lower[j] + STOP_MARGIN  # parked on the margin for 20 frames
+    q[:, k] = r.upper[k] - STOP_MARGIN - np.radians(1.0)  # inside, by a degree more
+    checks = controller_checks(trajectory_of(problem, q, "qp"), r)
+    assert checks.at_margin[:, j].sum() == 20 and not checks.at_margin[:, k].any()
+    assert checks.share_at_margin == pytest.approx(checks.at_margin.any(axis=1).mean())
+    summary = checks.to_json()
+    parked = checks.at_margin.mean(axis=0)
+    assert summary["margin_joint_share"] == pytest.approx(parked.max())
+    assert parked[r.index(summary["margin_joint"])] == parked.max() >= 20 / problem.n_frames
+    q[40:, j] = r.lower[j]  # on the hard stop: in both counts
+    on_stop = controller_checks(trajectory_of(problem, q, "jm"), r)
+    assert on_stop.at_stop[40:].all() and on_stop.at_margin[40:, j].all()

@@ -390,6 +390,11 @@ def test_a_stack_file_names_mink_tasks_and_limits_beside_hlik_s(tmp_path):
         ),
         ('limits = [{ type = "CollisionAvoidanceLimit" }]', "[mink] limits: CollisionAvoidanceLimit:"),
         ('limits = [{ type = "ConfigurationLimit", gain = 5.0 }]', "[mink] limits: ConfigurationLimit:"),
+        # mink's KeyError for a joint it does not know (a traceback before; a new user's trial)
+        (
+            'limits = [{ type = "VelocityLimit", velocities = { foo = 1.0 } }]',
+            "[mink] limits: VelocityLimit: Invalid name 'foo'",
+        ),
     ],
 )
 def test_a_value_mink_refuses_is_one_line_naming_the_file_before_the_work(tmp_path, table, says):

@@ -25,9 +25,13 @@ from hlik.criteria.angles import joint_difference
 from hlik.robot.dynamics import inverse_dynamics, motion_rates
 from hlik.robot.floor import lowest_points
 from hlik.robot.model import Robot
+from hlik.solvers.settings import STOP_MARGIN
 from hlik.trajectory import Trajectory
 
 AT_STOP = math.radians(0.5)  # a joint this close to a stop "sits on it"
+# a joint this close to a stop is parked on the solvers' margin (STOP_MARGIN, 3 deg, plus AT_STOP):
+# at rest against their soft stop, where JM's joints sit on the hard one
+AT_MARGIN = STOP_MARGIN + AT_STOP
 BELOW_FLOOR = 0.01  # m: a lowest point this far under the floor is reported
 
 
@@ -45,6 +49,8 @@ class ControllerChecks:
         torque: (T, n) joint torques, N m.
         torque_ratio: Largest |tau_j| / tau_max,j of the frame (0 where no joint has a limit).
         at_stop: A limited joint within :data:`AT_STOP` of one of its stops.
+        at_margin: (T, n) each joint within :data:`AT_MARGIN` of one of its stops (the solvers'
+            margin; False for unlimited joints).
         lowest: World height of the robot's lowest point, m.
         base_height: World height of the base frame (the robot's floor), m.
         end_speed: (n,) each joint's speed into the last frame, rad/s.
@@ -61,6 +67,7 @@ class ControllerChecks:
     torque: np.ndarray
     torque_ratio: np.ndarray
     at_stop: np.ndarray
+    at_margin: np.ndarray
     lowest: np.ndarray
     base_height: float
     end_speed: np.ndarray
@@ -104,6 +111,10 @@ class ControllerChecks:
         return float(np.count_nonzero(self.at_stop) / max(self.n_frames, 1))
 
     @property
+    def share_at_margin(self) -> float:
+        return float(np.count_nonzero(self.at_margin.any(axis=1)) / max(self.n_frames, 1))
+
+    @property
     def stop_time(self) -> float:
         """How long the joints still moving at the last frame need to stop at their acceleration
         limits, s (0 at rest; ``inf`` if a moving joint has no limit)."""
@@ -135,6 +146,8 @@ class ControllerChecks:
         does not give, and the time to stop without acceleration limits, are null (not 0, inf)."""
         accel_joint, _ = self.peak(self.acceleration, self.acceleration_limit)
         torque_joint, torque = self.peak(self.torque, self.effort_limit)
+        parked = self.at_margin.mean(axis=0) if self.n_frames else np.zeros(0)  # (n,) share per joint
+        margin_joint = self.joint_names[int(parked.argmax())] if parked.any() else ""
 
         def ratio(values: np.ndarray, given: bool) -> float | None:
             return float(values.max(initial=0.0)) if given else None
@@ -154,6 +167,9 @@ class ControllerChecks:
             "frames_over_effort": self.frames_over_effort,
             "frames_at_stop": int(np.count_nonzero(self.at_stop)),
             "share_at_stop": self.share_at_stop,
+            "share_at_margin": self.share_at_margin,
+            "margin_joint": margin_joint,
+            "margin_joint_share": float(parked[parked.argmax()]) if parked.size else 0.0,
             "base_height": self.base_height,
             "lowest_point": self.lowest_point,
             "end_speed": float(np.max(np.abs(self.end_speed), initial=0.0)),
@@ -196,7 +212,7 @@ def controller_checks(traj: Trajectory, robot: Robot) -> ControllerChecks:
         tau_ratio = np.max(np.abs(torque) / robot.effort_limit, axis=1, initial=0.0)
         jerk_ratio = np.max(np.abs(jerks) / robot.jerk_limit, axis=1, initial=0.0)
     limited = ~unlimited
-    near = (q[:, limited] - robot.lower[limited] < AT_STOP) | (robot.upper[limited] - q[:, limited] < AT_STOP)
+    room = np.minimum(q - robot.lower, robot.upper - q)  # (T, n), inf for unlimited joints
     p = traj.placement
     base = float(p.translation[2])
     return ControllerChecks(
@@ -208,7 +224,8 @@ def controller_checks(traj: Trajectory, robot: Robot) -> ControllerChecks:
         jerk_joint=jerk_joint,
         torque=torque,
         torque_ratio=np.nan_to_num(tau_ratio),
-        at_stop=np.any(near, axis=1),
+        at_stop=np.any(room < AT_STOP, axis=1),
+        at_margin=room < AT_MARGIN,
         lowest=lowest_points(robot, q, p.rotation, base),
         base_height=base,
         end_speed=velocity[-1] if len(q) else np.zeros(robot.dof),

@@ -35,6 +35,11 @@ def controller_line(c) -> str:
     else:
         parts.append(f"peak torque {j['max_torque']:.1f} N m ({j['torque_joint']}; no effort limits given)")
     parts.append(f"a joint within 0.5° of a stop in {100 * j['share_at_stop']:.1f} % of frames")
+    if j["share_at_margin"] > 0.0:  # parked on the solvers' soft stop
+        parts.append(
+            f"within 3.5° (the solvers' margin) in {100 * j['share_at_margin']:.1f} % "
+            f"({j['margin_joint']} in {100 * j['margin_joint_share']:.1f} %)"
+        )
     parts.append(f"base at z {j['base_height']:.3f} m, lowest point {j['lowest_point']:.3f} m")
     if j["end_speed"] > 0.0:
         if j["stop_time"] is not None:

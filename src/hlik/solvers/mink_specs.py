@@ -71,8 +71,9 @@ def build(robot: Robot, spec: Mapping[str, object]) -> mink.Task | mink.Limit:
         if isinstance(obj, mink.PostureTask) and not isinstance(obj, mink.DampingTask):  # damping: no target
             target = spec.get("target")
             obj.set_target(robot.home if target is None else np.asarray(target, dtype=float))
-    except (TypeError, ValueError, mink.exceptions.MinkError) as e:
-        raise SettingsError(f"{spec['type']}: {e}") from None
+    except (TypeError, ValueError, KeyError, IndexError, mink.exceptions.MinkError) as e:
+        # mink names an unknown joint in a KeyError (VelocityLimit's velocities): its text, unquoted
+        raise SettingsError(f"{spec['type']}: {e.args[0] if isinstance(e, KeyError) else e}") from None
     if isinstance(obj, mink.Task) and not on_a_tcp(obj):  # the solver aims those every frame
         try:
             obj.compute_error(mink.Configuration(robot.model, robot.home))
