@@ -151,8 +151,9 @@ def _swap_arms(t: str) -> str:
          r"mine.toml: \[effort_limits\] Elbow_L = 0.02 N m cannot hold the home pose against gravity"),
         (lambda t: t, lambda m: m.replace(_TCP, "").replace(_ELBOW, _ELBOW + _TCP),
          r"mine.toml: \[arms\] left: Underarm_L, Wrist1_L, Wrist2_L do not move left_tcp"),
-        (lambda t: t.replace("HipYaw = 1.0\n", "HipYaw = 57.3\n", 1).replace("HipPitch = 1.0\n", "HipPitch = 90.0\n", 1),
-         lambda m: m, r"mine.toml: \[velocity_limits\] HipPitch = 90 rad/s is faster than any robot joint .* in "
+        (lambda t: t.replace("HipYaw = 1.0\n", "HipYaw = 57.3\n", 1).replace(
+            "HipPitch = 1.0\n", "HipPitch = 90.0\n", 1), lambda m: m,
+         r"mine.toml: \[velocity_limits\] HipPitch = 90 rad/s is faster than any robot joint .* in "
          r"degrees\? write rad/s"),
         (lambda t: t.replace("HipPitch = 10.0\n", "HipPitch = 5730\n", 1), lambda m: m,
          r"mine.toml: \[acceleration_limits\] HipPitch = 5730 rad/s\^2 is faster than any robot joint"),

@@ -211,7 +211,6 @@ def controller_checks(traj: Trajectory, robot: Robot) -> ControllerChecks:
         acc_ratio = np.max(np.abs(accel) / robot.acceleration_limit, axis=1, initial=0.0)
         tau_ratio = np.max(np.abs(torque) / robot.effort_limit, axis=1, initial=0.0)
         jerk_ratio = np.max(np.abs(jerks) / robot.jerk_limit, axis=1, initial=0.0)
-    limited = ~unlimited
     room = np.minimum(q - robot.lower, robot.upper - q)  # (T, n), inf for unlimited joints
     p = traj.placement
     base = float(p.translation[2])
