@@ -5,6 +5,7 @@ a fault the run can work around (a broken scene object) runs with a one-line war
 from __future__ import annotations
 
 import math
+import signal
 import xml.etree.ElementTree as ET
 from collections.abc import Callable
 from pathlib import Path
@@ -211,4 +212,19 @@ def test_ctrl_c_ends_in_one_line_and_exit_130(tmp_path, monkeypatch):
     result = _invoke(["run", "--out", str(tmp_path / "x.rrd")])
     assert result.exit_code == 130, result.output
     assert result.stderr.strip() == "error: interrupted; nothing written", result.stderr
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_sigterm_ends_in_one_line_and_exit_143(tmp_path, monkeypatch):
+    """SIGTERM's handler (hlik.util.atomic.Termination) raises SystemExit(143) wherever the command
+    is: it ended with that code and no line (a reviewer's kill -TERM); now it says so, as Ctrl-C does."""
+    import hlik.pipeline
+
+    def terminate(*args, **kwargs):
+        raise SystemExit(128 + signal.SIGTERM)
+
+    monkeypatch.setattr(hlik.pipeline, "load_motion", terminate)
+    result = _invoke(["run", "--out", str(tmp_path / "x.rrd")])
+    assert result.exit_code == 143, result.output
+    assert result.stderr.strip() == "error: terminated; nothing written", result.stderr
     assert list(tmp_path.iterdir()) == []

@@ -43,6 +43,11 @@ INTERRUPTED = 130  # exit code of a command ended by Ctrl-C (128 + SIGINT)
 TERMINATED = 143  # exit code of a command ended by SIGTERM (hlik.util.atomic.Termination)
 
 
+class Said(SystemExit):
+    """A command's exit by Ctrl-C or SIGTERM that it has already explained in its own line (a
+    study's kept cells): :class:`_OneLineErrors` adds none."""
+
+
 class _OneLineErrors(TyperGroup):
     """Usage errors (unknown option, bad value) in one line and exit code 2, like hlik's own errors,
     instead of click's box; SIGTERM ends a command through ``finally`` blocks (temporaries removed)."""
@@ -70,6 +75,10 @@ class _OneLineErrors(TyperGroup):
         except typer.Abort:  # end of input at a prompt
             print_error("aborted")
             result = 1
+        except SystemExit as stop:  # SIGTERM (raising_on_sigterm): the temporaries are gone by now
+            if stop.code == TERMINATED and not isinstance(stop, Said):
+                print_error("terminated; nothing written")
+            raise
         if result == INTERRUPTED:  # typer turns Ctrl-C into this exit code, silently
             print_error("interrupted; nothing written")
         if not standalone_mode:

@@ -121,7 +121,7 @@ def _print_calibration(r: Robot, cal: Calibration) -> None:
             m.joint,
             m.mmm or "(held)",
             f"{m.a:+.0f}",
-            f"{m.b:+.4f} ({m.b / np.pi:+.3f}π)",
+            f"{round(m.b, 4) + 0.0:+.4f} ({round(m.b / np.pi, 3) + 0.0:+.3f}π)",  # + 0.0: no "-0.0000"
             off,
             f"{cal.score[m.joint]:.2f}",
         )

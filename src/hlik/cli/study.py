@@ -17,6 +17,7 @@ from hlik.cli.app import (
     MOTION_FILES,
     TERMINATED,
     CorpusOpt,
+    Said,
     console,
     one_line,
     print_error,
@@ -130,7 +131,7 @@ def _stopped(stop: BaseException, out: Path, n_cells: int) -> None:
         # said and decided: a Ctrl-C delivered late (one held back while a cell was written) must
         # not turn this exit into death by SIGINT (exit -2 instead of 130, seen once in CI)
         signal.signal(signal.SIGINT, signal.SIG_IGN)
-    raise SystemExit(TERMINATED if code == TERMINATED else INTERRUPTED) from None
+    raise Said(TERMINATED if code == TERMINATED else INTERRUPTED) from None
 
 
 def _takes(folder: Path) -> list[Path]:

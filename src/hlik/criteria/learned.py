@@ -68,6 +68,8 @@ def corpus_files(folder: str | Path | None = None) -> list[Path]:
     if folder is None:
         return [demo_motion_path()]
     folder = Path(folder)
+    if not folder.exists():
+        raise HlikError(f"{folder}: no such folder or file for the corpus")
     files = sorted(folder.glob("*.xml")) if folder.is_dir() else [folder]
     if not files or not all(f.is_file() for f in files):
         raise HlikError(f"{folder}: no motion files (*.xml) found for the corpus")

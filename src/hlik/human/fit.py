@@ -234,8 +234,12 @@ def _fit_notes(
     note = (
         f"{where}MMM fitted to the keypoints (height {height:.2f} m): elbows and wrists off by "
         f"{100 * np.median(error):.1f} cm median, {100 * error[worst]:.1f} cm at most "
-        f"({keypoints.times[worst]:.2f} s); the subject's shoulders are {100 * abs(wider):.1f} cm "
-        f"{'wider' if wider > 0 else 'narrower'} than the model's"
+        f"({keypoints.times[worst]:.2f} s of the take); the subject's shoulders are "
+        + (
+            "as wide as the model's"
+            if abs(wider) < 0.0005
+            else f"{100 * abs(wider):.1f} cm {'wider' if wider > 0 else 'narrower'} than the model's"
+        )
     )
     notes: list[str] = []
     rows, lowest = lowest_points(motion, STOOP_SAMPLES)
