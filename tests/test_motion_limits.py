@@ -62,6 +62,9 @@ def test_a_target_reversing_at_full_speed_keeps_every_limit(name, solver):
     assert np.all(q >= r.lower - 1e-9) and np.all(q <= r.upper + 1e-9)
     checks = controller_checks(trajectory_of(problem, q, solver), r)
     assert np.max(checks.acceleration_ratio) <= 1.0 + 1e-4 and checks.frames_over_effort == 0, (name, solver)
+    # the frames run at the limit are reported, counted as the ratio says
+    at_limit = checks.to_json()["share_at_acceleration_limit"]
+    assert 0 < at_limit == np.mean(checks.acceleration_ratio >= 0.99), (name, solver)
 
 
 @pytest.mark.parametrize("solver", ["qp", "jv", "slsqp"])
@@ -288,6 +291,9 @@ def test_hands_sent_into_each_other_brake_before_the_margin(name, solver):
     q, _ = solve_problem(SOLVES[solver], r, motion, replace(problem.targets, pos=pos), problem.placement)
     checks = controller_checks(trajectory_of(problem, q, solver), r)
     assert np.max(checks.acceleration_ratio) <= 1.0 + 1e-4 and checks.frames_over_effort == 0, (name, solver)
+    # the frames run at the limit are reported, counted as the ratio says
+    at_limit = checks.to_json()["share_at_acceleration_limit"]
+    assert 0 < at_limit == np.mean(checks.acceleration_ratio >= 0.99), (name, solver)
     margin = qp.QPSettings().collision_margin
     closest = np.array([_closest_pair(r, x) for x in q])
     assert closest.min() >= min(margin, closest[0]) - 1e-3, (name, solver, closest.min())

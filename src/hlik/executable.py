@@ -29,6 +29,7 @@ from hlik.solvers.settings import STOP_MARGIN
 from hlik.trajectory import Trajectory
 
 AT_STOP = math.radians(0.5)  # a joint this close to a stop "sits on it"
+AT_LIMIT = 0.99  # a joint at this share of its acceleration limit runs on it (no margin left)
 # a joint this close to a stop is parked on the solvers' margin (STOP_MARGIN, 3 deg, plus AT_STOP):
 # at rest against their soft stop, where JM's joints sit on the hard one
 AT_MARGIN = STOP_MARGIN + AT_STOP
@@ -157,6 +158,9 @@ class ControllerChecks:
             "max_acceleration_ratio": ratio(self.acceleration_ratio, self.has_acceleration_limits),
             "acceleration_joint": accel_joint,
             "frames_over_acceleration": self.frames_over_acceleration,
+            "share_at_acceleration_limit": float(np.mean(self.acceleration_ratio >= AT_LIMIT))
+            if self.n_frames
+            else 0.0,
             "max_jerk": float(self.jerk.max(initial=0.0)),
             "max_jerk_ratio": ratio(self.jerk_ratio, self.has_jerk_limits),
             "jerk_joint": self.jerk_joint,

@@ -16,7 +16,8 @@ def controller_line(c) -> str:
     if c.has_acceleration_limits:
         parts.append(
             f"peak acceleration {j['max_acceleration_ratio']:.2f} of its limit ({j['acceleration_joint']}), "
-            f"{_frames(j['frames_over_acceleration'])} over"
+            f"{_frames(j['frames_over_acceleration'])} over, a joint at it in "
+            f"{100 * j['share_at_acceleration_limit']:.1f} % of frames"
         )
     else:
         parts.append("no acceleration limits given")
