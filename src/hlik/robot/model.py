@@ -528,8 +528,9 @@ def _check_plausible(path: Path, names: tuple[str, ...], limits: dict) -> None:
     every joint move 57x faster than the robot can, with every check passing."""
     for what, bound in FASTEST.items():
         values, unit = limits[f"{what}_limit"], "rad/s" if what == "velocity" else "rad/s^2"
-        if np.any(values > bound):
-            j = int(np.argmax(values))
+        fast = np.isfinite(values) & (values > bound)  # inf: none given
+        if np.any(fast):
+            j = int(np.argmax(np.where(fast, values, 0.0)))
             raise RobotError(
                 f"{path}: [{what}_limits] {names[j]} = {values[j]:g} {unit} is faster than any robot "
                 f"joint (at most {bound:g} {unit} taken as plausible): in degrees? write {unit}"
