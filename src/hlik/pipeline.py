@@ -194,7 +194,7 @@ def run(
 
         announce = lambda stage: _say(progress, stage)  # noqa: E731
         stage_settings = settings_for(settings, stack.settings(STAGE_TABLE, robot.name))
-        solver = WholeTake(solver, stage_settings, announce=announce, report=refined.append)
+        solver = WholeTake(solver, stage_settings, announce=announce, report=refined.append, limits=limits)
     traj = retarget(motion, robot, solver, placement, learned)
     traj = replace(traj, scenario=scenario)  # what hlik evaluate scores it by, unless told
     wall, cpu = time.perf_counter() - wall, time.process_time() - cpu

@@ -19,7 +19,9 @@ for every frame's step dq:
          (:mod:`hlik.executable`: at rest before the first frame), times ``headroom``;
          each hand within ``position_band`` m per axis of its target (or as far as the run left it);
          torques above ``torque_watch`` of their efforts within ``torque_fraction`` of them;
-         each near pair at least ``collision_margin`` apart,
+         each near pair at least ``collision_margin`` apart;
+         a caller's ``mink.Limit`` rows at each frame, ``G dq_t <= h`` (as the frame-by-frame
+         solvers keep them, :func:`hlik.solvers.frames.limit_rows`),
 
 with e_o the rotation vector of R R*^T (rad), e_p the TCP's offset (m), e_i a criterion's
 residual at frame t (:class:`~hlik.criteria.base.Term`; those of one frame's pose: the criteria of
@@ -32,8 +34,9 @@ the solver's own last two frames, from which the solvers keep the joints able to
 stops' margins. A step is kept only if the merit (the objective's terms as they are at the step)
 falls, no hand ends further off than its rows' box corner and a band more (the curvature the rows
 do not see), no torque ends above ``torque_fraction`` of its effort (or above what the solver's
-run asked) by more than :data:`TORQUE_TOLERANCE` of it, and no pair closer than half the margin (or
-than it was); else the trust region halves, but a step refused for its torques alone is first
+run asked) by more than :data:`TORQUE_TOLERANCE` of it, no pair closer than half the margin (or
+than it was), and every frame inside a caller's limits (their room ``h`` at least 0, or what the
+run left); else the trust region halves, but a step refused for its torques alone is first
 solved again with the torque rows shifted by what they missed (a second-order correction). The
 rows are kept to Clarabel's tolerance; ``headroom`` leaves 1 % for it. A solver's motion that
 breaks a limit (JM) keeps breaking it no more than it did: :func:`hlik.run_spec.RunSpec.check`
@@ -66,6 +69,7 @@ from hlik.robot.model import SIDES, Robot
 from hlik.robot.state import robot_state
 from hlik.solvers.base import Solver, SolverResult
 from hlik.solvers.catalog import WHOLE_TAKE
+from hlik.solvers.frames import limit_rows
 from hlik.solvers.limits import MotionLimits
 from hlik.solvers.qp_backend import qpsolvers_solve
 from hlik.solvers.settings import LimitSettings, WholeTakeSettings, settings_for
@@ -78,6 +82,7 @@ _EPS = 1e-6  # rad^2: damping of every step, so that the QP is strictly convex
 # N m here on the Panda's largest joints; exactly at the allowed torque, steps that kept the
 # hands' orientation were refused until the trust region was gone
 TORQUE_TOLERANCE = 1e-3
+CALLER_TOLERANCE = 1e-6  # a caller's limit's room a trial may end below 0 by (its rows' units)
 
 
 @dataclass(frozen=True, eq=False)
@@ -268,8 +273,11 @@ class _Fixed:
     smooth: sp.csr_matrix
 
 
-def refine(problem: Problem, q: np.ndarray, settings: WholeTakeSettings | None = None) -> Refinement:
-    """The motion ``q`` (T, n) of ``problem`` improved over the whole take (module docstring).
+def refine(
+    problem: Problem, q: np.ndarray, settings: WholeTakeSettings | None = None, limits: Sequence = ()
+) -> Refinement:
+    """The motion ``q`` (T, n) of ``problem`` improved over the whole take (module docstring),
+    inside ``limits`` (a caller's ``mink.Limit`` objects, as the frame-by-frame solver kept them).
 
     Returns ``q`` itself (no step kept) where no step lowers the merit within the limits.
     """
@@ -289,6 +297,8 @@ def refine(problem: Problem, q: np.ndarray, settings: WholeTakeSettings | None =
     turns = q - given  # multiples of 2 pi, given back at the end
     lin = take.linearise(q)
     fixed = _fixed(robot, q, lin, problem.dt, s)
+    caller = CallerLimits(robot, limits, problem.dt) if limits else None
+    room = caller.room(q) if caller else None  # (T,) what the run left: a start below 0 stays so
     cost = first = _merit(lin, q, fixed, s)
     region, iterations, accepted, settled = s.trust_region, 0, 0, False
     miss = None  # what the torque rows' linearisation missed at the last trial, N m
@@ -296,7 +306,7 @@ def refine(problem: Problem, q: np.ndarray, settings: WholeTakeSettings | None =
         region = 0.0
     while iterations < s.iterations and region >= s.min_trust_region:
         iterations += 1
-        step = _step(lin, q, fixed, region, s, miss)
+        step = _step(lin, q, fixed, region, s, miss, caller.rows(q) if caller else None)
         if step is None:
             region, miss = region / 2.0, None
             continue
@@ -310,6 +320,8 @@ def refine(problem: Problem, q: np.ndarray, settings: WholeTakeSettings | None =
         within = np.all(np.linalg.norm(at_trial.position, axis=-1) <= fixed.reach)
         trial_cost = _merit(at_trial, trial, fixed, s)
         safe = strong and within and at_trial.closest >= min(0.5 * s.collision_margin, lin.closest)
+        if safe and caller is not None:
+            safe = bool(np.all(caller.room(trial) >= np.minimum(room, 0.0) - CALLER_TOLERANCE))
         if safe and trial_cost < cost:
             settled = cost - trial_cost < s.tolerance * cost
             q, lin, cost, accepted, miss = trial, at_trial, trial_cost, accepted + 1, None
@@ -416,10 +428,12 @@ def _step(
     region: float,
     s: WholeTakeSettings,
     miss: np.ndarray | None = None,
+    caller: tuple[sp.csr_matrix, np.ndarray] | None = None,
 ) -> np.ndarray | None:
     """(T, n) the QP's step from ``q`` within the trust ``region``, rad, or None where it has no
     solution; ``miss`` (T, k), N m, shifts the torque rows by what their linearisation missed at
-    the last trial (:func:`_torque_miss`)."""
+    the last trial (:func:`_torque_miss`); ``caller``: a caller's limit rows ``G dq <= h``
+    (:meth:`CallerLimits.rows`)."""
     t_n, n = q.shape
     jo, jp = lin.orientation_jacobian, lin.position_jacobian
     change = q - fixed.run
@@ -472,6 +486,9 @@ def _step(
             cap, shift = fixed.strength.reshape(-1)[watched], miss.reshape(-1)[watched]
             rows.extend([torque_rows, -torque_rows])
             upper.extend([cap - value[watched] - shift, cap + value[watched] + shift])
+    if caller is not None and caller[0].shape[0]:
+        rows.append(caller[0])
+        upper.append(np.maximum(caller[1], 0.0))  # a row the start breaks moves to it
     near = [(t, d, g) for t, (d, g) in enumerate(lin.pairs) if len(d)]
     if near:  # each near pair's distance d + g dq_t at least the margin (or d)
         frames = np.concatenate([np.full(len(d), t) for t, d, _ in near])
@@ -505,6 +522,34 @@ def _step(
     return np.clip(x, box_lo, box_hi).reshape(t_n, n)
 
 
+class CallerLimits:
+    """A caller's ``mink.Limit`` objects over the whole take: each frame's rows ``G dq_t <= h`` at its
+    configuration (:func:`hlik.solvers.frames.limit_rows`, the frame-by-frame solvers' own), placed
+    in the take's step; ``h`` is a frame's room, 0 on the limit."""
+
+    def __init__(self, robot: Robot, limits: Sequence, dt: float):
+        import mink  # the caller's limits are mink's: it is there
+
+        self.limits, self.dt, self.n = tuple(limits), dt, robot.dof
+        self.config = mink.Configuration(robot.model, robot.home)
+
+    def _frames(self, q: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
+        out = []
+        for q_t in q:
+            self.config.update(q_t)
+            out.append(limit_rows(self.limits, self.config, self.dt, self.n))
+        return out
+
+    def rows(self, q: np.ndarray) -> tuple[sp.csr_matrix, np.ndarray]:
+        """((K, T n), (K,)) every frame's rows at ``q`` (T, n), stacked."""
+        frames = self._frames(q)
+        return sp.block_diag([g for g, _ in frames], format="csr"), np.concatenate([h for _, h in frames])
+
+    def room(self, q: np.ndarray) -> np.ndarray:
+        """(T,) each frame's least room ``h`` at ``q`` (T, n) (inf where no row is active)."""
+        return np.array([h.min(initial=np.inf) for _, h in self._frames(q)])
+
+
 def _torque_rows(jac: np.ndarray, t_n: int, n: int) -> sp.csr_matrix:
     """(T k, T n) the torque rows from (T, 3, k, n) derivatives by q_t-1, q_t, q_t+1."""
     k = jac.shape[2]
@@ -528,6 +573,7 @@ class WholeTake:
     settings: WholeTakeSettings | None = None
     announce: Callable[[str], None] | None = None
     report: Callable[[Refinement], None] | None = None
+    limits: Sequence = ()  # a caller's mink.Limits, kept as the inner solver keeps them
 
     @property
     def name(self) -> str:
@@ -548,7 +594,7 @@ class WholeTake:
         result = self.inner(problem)
         if self.announce is not None:
             self.announce(f"optimising the whole take ({problem.n_frames} frames)")
-        done = refine(problem, result.q, self.stage)
+        done = refine(problem, result.q, self.stage, self.limits)
         if self.report is not None:
             self.report(done)
         diagnostics = replace(
