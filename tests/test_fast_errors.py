@@ -185,3 +185,15 @@ def test_the_export_formats_the_command_line_knows_are_the_writers():
     from hlik.run_spec import EXPORT_FORMATS
 
     assert EXPORT_FORMATS == tuple(WRITERS)
+
+
+def test_the_demo_corpus_named_in_python_says_how_python_names_it():
+    """``--corpus demo`` names the bundled demo on the command line; ``RunSpec(corpus="demo")``
+    was refused as a missing folder (a reviewer's trial): it now says that Python's is None."""
+    from hlik.run_spec import RunSpec
+    from hlik.util.errors import SettingsError
+
+    with pytest.raises(
+        SettingsError, match=r"RunSpec.corpus 'demo': in Python the bundled demo is corpus=None"
+    ):
+        RunSpec(corpus="demo").check()

@@ -103,6 +103,9 @@ def test_learned_is_cached_by_robot_and_corpus(tmp_path):
     other = learn(r, corpus)
     assert len(sorted(cache_dir().glob("dual_panda-*.npz"))) == len(files) + 1
     assert not np.allclose(other.synergies.mean, first.synergies.mean)
+    with pytest.raises(HlikError, match="no such folder or file for the corpus"):
+        learn(r, tmp_path / "missing")
+    (tmp_path / "empty").mkdir()
     with pytest.raises(HlikError, match="no motion files"):
         learn(r, tmp_path / "empty")
 

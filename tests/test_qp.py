@@ -472,7 +472,7 @@ def test_error_damping_settles_the_joints_chattering_at_targets_out_of_reach():
     robot = load_robot("armar6")
     learned = learn(robot)
     flips, error = {}, {}
-    for damping in (0.0, 5.0):
+    for damping in (0.0, 20.0):
         spec = RunSpec(motion=data_file("kit_ml/00001_mmm.xml"), robot="armar6", span=(1.0, 3.5),
                        settings={"error_damping": damping})  # fmt: skip
         traj = run(spec, robot=robot, learned=learned).trajectory
@@ -480,5 +480,5 @@ def test_error_damping_settles_the_joints_chattering_at_targets_out_of_reach():
         flips[damping] = np.mean(np.any(np.abs(np.diff(a, axis=0)) > robot.acceleration_limit, axis=1))
         error[damping] = np.mean(np.linalg.norm(traj.tcp_pos - traj.targets.pos, axis=-1))
     assert error[0.0] > 0.1, "the targets should be out of reach"
-    assert flips[5.0] < 0.6 * flips[0.0], flips
-    assert error[5.0] < error[0.0] + 0.01, error
+    assert flips[20.0] < 0.6 * flips[0.0], flips  # 0.86 -> 0.40 measured
+    assert error[20.0] < error[0.0] + 0.01, error

@@ -73,6 +73,14 @@ def test_a_robot_table_named_like_the_robot_but_misspelt_is_noted(tmp_path):
     # a bundled robot's table is meant for it: the bundled ee_pose's [qp.robot.armar6] on ARMAR-III
     assert load_stack("ee_pose").near_misses("qp", "armar3") == []
     assert stack.settings("qp", "armar6").orientation_cost == stack.settings("qp").orientation_cost
+    # a user's robot named after the bundled one it copies: the bundled robot's tables do not tune it
+    # (a reviewer's copy lost 2-Panda's look-ahead and stage silently: the left hand 3.7 -> 11.3 deg)
+    copied = load_stack("ee_pose").near_misses("qp", "dual_panda_raised")
+    assert [n.split("] ")[0].split("[")[1] for n in copied] == [
+        "qp.robot.dual_panda",
+        "whole_take.robot.dual_panda",
+    ]
+    assert all("copy the table as [" in n and "dual_panda_raised]" in n for n in copied), copied
 
 
 def test_a_run_reads_its_robot_s_table():

@@ -30,8 +30,11 @@ def retarget(
 
     The problem (human kinematics, placement, hand targets, human reference, the learned pieces
     of the solver's ``criteria``) is built once and handed to the solver; ``placement`` defaults
-    to the robot's rule (``Robot.placement``), ``learned`` to the pieces learned from the default
-    corpus where a criterion needs them.
+    to the robot's rule (``Robot.placement``), ``learned`` to the pieces learned from the bundled
+    demo where a criterion needs them (the library's default corpus; ``hlik run``'s is the shared
+    KIT takes where found, :func:`hlik.util.paths.corpus_setting`). ``solver`` defaults to JM, the
+    baseline that needs no settings; ``hlik run`` and :class:`~hlik.run_spec.RunSpec` default to
+    the QP.
     A custom solver may also return bare joint angles (T, n); its diagnostics are then unknown
     (one pass per frame, nothing failed).
 

@@ -150,6 +150,8 @@ class RunSpec:
         robot_toml(str(self.robot))
         if self.motion is not None:
             motion_format(self.motion)
+        if self.corpus is not None and str(self.corpus) == "demo" and not Path(self.corpus).exists():
+            raise SettingsError("RunSpec.corpus 'demo': in Python the bundled demo is corpus=None")
         for what, path in (("--metric", self.metric), ("--corpus", self.corpus)):
             if path is not None and not Path(path).exists():
                 raise SettingsError(f"{path} ({what}): no such file or folder")

@@ -263,6 +263,7 @@ def _outputs(
 
 def _report(result: RunResult, rrd: Path, npz: Path, corpus_source: str) -> None:
     """The summary, the scores, the warnings and the commands to go on with."""
+    from hlik.robot.reach import arm_reach
     from hlik.solvers.catalog import solver_spec
 
     traj, ev, spec = result.trajectory, result.evaluation, result.spec
@@ -272,7 +273,8 @@ def _report(result: RunResult, rrd: Path, npz: Path, corpus_source: str) -> None
     how = traj.solver + (f" + {', '.join(criteria)}" if criteria else "")
     how += ", no criteria" if not criteria and solver_spec(spec.solver).takes_criteria else ""
     console.print(f"{spec.motion_path.stem} -> {result.robot.name} ({how})", soft_wrap=True)
-    print_table(run_summary(traj, result.motion, result.solve_seconds, ev, _solver_note(result)))
+    beyond = arm_reach(result.robot).beyond(traj.targets.pos)
+    print_table(run_summary(traj, result.motion, result.solve_seconds, ev, _solver_note(result), beyond))
     size = lambda path: f"{path.stat().st_size / 1e6:.1f} MB"  # noqa: E731
     console.print(f"recording: {rrd} ({size(rrd)})", soft_wrap=True)
     console.print(f"trajectory: {npz} ({size(npz)})", soft_wrap=True)

@@ -1,5 +1,5 @@
 """Joint-space criteria: HJA^r (mapped human joint angles), HJL (human joint limits), JLA (robot limits);
-and the trunk posture term the QP may add (:class:`TrunkUpright`, not one of the paper's criteria).
+and the trunk posture term the solvers add (:class:`TrunkUpright`, not one of the paper's criteria).
 
 All three are linear in q: residual ``e = S (q - target) / scale`` with selection rows ``S``, and the
 metric is the mean of squares.
@@ -42,11 +42,6 @@ class JointBand:
         jac = np.zeros((len(self.idx), n))
         jac[np.arange(len(self.idx)), self.idx] = 1.0 / self.half
         return jac
-
-
-def mean_square(residual: np.ndarray) -> np.ndarray:
-    """(F,) mean of squares over the last axis: the cost h of HJA^r, HJL, SOA_q, fJLA."""
-    return np.mean(np.square(residual), axis=-1)
 
 
 def mapped_pose(robot: Robot, q_map: np.ndarray) -> JointBand:

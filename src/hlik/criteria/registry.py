@@ -46,7 +46,7 @@ def register(cls: type[Criterion]) -> type[Criterion]:
     """Add a criterion class under ``cls.name`` (usable as a class decorator); returns ``cls``.
 
     Raises:
-        ValueError: the name is taken by another class.
+        SettingsError: the name is taken by another class (a ``ValueError``).
     """
     known = criterion_class(cls.name) if cls.name in _FUNCTIONAL else None
     if known is not None and known is not cls:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 
 from hlik.criteria import registry
@@ -12,8 +13,9 @@ from hlik.human.kinematics import HumanKinematics, forward_kinematics
 from hlik.human.motion import HumanMotion, frame_period
 from hlik.problem.placement import Placement, placement_from_spec
 from hlik.problem.reference import HumanReference, human_reference
-from hlik.problem.targets import HandTargets, hand_targets
+from hlik.problem.targets import HandTargets, hand_targets, within_reach
 from hlik.robot.model import Robot
+from hlik.robot.reach import arm_reach
 
 
 @dataclass(frozen=True, eq=False)
@@ -44,6 +46,12 @@ class Problem:
     @property
     def n_frames(self) -> int:
         return self.motion.n_frames
+
+    @cached_property
+    def tracked(self) -> HandTargets:
+        """What the solvers track: ``targets`` with each position beyond its arm's reach moved
+        onto it (:func:`~hlik.problem.targets.within_reach`); ``targets`` is what is scored."""
+        return within_reach(self.targets, arm_reach(self.robot))
 
 
 def build_problem(

@@ -12,6 +12,7 @@ import numpy as np
 
 from hlik.human.kinematics import HumanKinematics
 from hlik.problem.placement import Placement
+from hlik.robot.reach import ArmReach
 
 
 @dataclass(frozen=True, eq=False)
@@ -35,3 +36,15 @@ def hand_targets(human: HumanKinematics, placement: Placement) -> HandTargets:
     """The human's TCP trajectories as robot TCP targets."""
     pos, rot = placement.to_base(human.tcp_pos, human.tcp_rot)
     return HandTargets(pos, rot)
+
+
+def within_reach(targets: HandTargets, reach: ArmReach) -> HandTargets:
+    """``targets`` with each position beyond its arm's reach sphere moved onto it, along the line
+    from the sphere's centre (the nearest point of the sphere); orientations and the positions
+    inside kept. What the solvers track (:attr:`hlik.problem.problem.Problem.tracked`); the
+    trajectory and its scores keep ``targets``."""
+    offset = targets.pos - reach.centre
+    distance = np.linalg.norm(offset, axis=-1, keepdims=True)
+    radius = reach.radius[:, None]
+    onto = reach.centre + offset * (radius / np.maximum(distance, 1e-12))
+    return HandTargets(np.where(distance > radius, onto, targets.pos), targets.rot)  # inside: as given

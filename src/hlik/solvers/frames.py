@@ -78,7 +78,7 @@ def track(
     seconds = np.zeros(n_frames)
     for k in range(n_frames):
         start = time.perf_counter()
-        sample = sample_at(problem.reference, problem.targets, k, history, problem.dt)
+        sample = sample_at(problem.reference, problem.tracked, k, history, problem.dt)
         box = limits.box(q if k else None, history[1], problem.dt, data, history[2])
         # from the constant-speed prediction: the previous configuration lies outside the
         # acceleration box whenever a joint moves faster than a_max dt, and clipped into it, it
@@ -103,7 +103,7 @@ def hand_miss(problem: Problem, q: np.ndarray) -> float:
     :data:`FIRST_FRAME_TOLERANCE`: the largest of each hand's position error over its metres and
     angle over its radians (at most 1: both hands within both)."""
     pos, rot = tcp_poses(problem.robot, q[None])
-    targets = problem.targets
+    targets = problem.tracked
     dp = np.linalg.norm(pos[0] - targets.pos[0], axis=-1)
     da = rotation_angle(rot[0], targets.rot[0])
     tol_p, tol_a = FIRST_FRAME_TOLERANCE
@@ -116,7 +116,7 @@ def hands_ik(problem: Problem, q: np.ndarray, box: JointBox, steps: int = 300) -
     ``ConfigurationLimit``), each step clipped into the box, to a standstill or ``steps``."""
     import mink  # the solvers' IK; light imports for the Python API that never solves
 
-    robot, targets = problem.robot, problem.targets
+    robot, targets = problem.robot, problem.tracked
     config = mink.Configuration(robot.model, box.clip(q))
     tasks = []
     for i, side in enumerate(SIDES):

@@ -102,8 +102,9 @@ class Stack:
         """Notes on what a run of ``solver`` on ``robot`` leaves unused: ``[<solver>.robot.<name>]``
         and ``[whole_take.robot.<name>]`` tables whose name is close to the robot's (``armar7``
         for ``armar6``: likely a typo; tables for other robots are not refused when the stack is
-        read, since a robot's name can be anything), and ``[mink]``'s own tasks and limits under
-        another solver."""
+        read, since a robot's name can be anything), a bundled robot's tables where a user's robot
+        is named after it (``dual_panda_raised``: a copy, which they do not tune), and
+        ``[mink]``'s own tasks and limits under another solver."""
         layers = (*(("qp", solver) if solver == "mink" else (solver,)), STAGE_TABLE)
         # another bundled robot's table is meant for it (armar6 beside armar3), not a typo
         names = {n for s in layers for n in self.robots.get(s, {})} - {robot, *available_robots()}
@@ -113,6 +114,15 @@ class Stack:
             for n in sorted(self.robots.get(s, {}))
             if n in names and difflib.get_close_matches(n, [robot], n=1, cutoff=0.75)
         ]
+        if robot not in available_robots():  # a user's robot named after a bundled one it copies
+            notes += [
+                f"{self.where}: [{s}.{ROBOT_TABLE}.{n}] tunes the bundled {n}, not robot {robot!r}, which "
+                f"gets the stack's defaults (copy the table as [{s}.{ROBOT_TABLE}.{robot}] to use it)"
+                for s in layers
+                for n in sorted(self.robots.get(s, {}))
+                if n in available_robots()
+                and (robot.startswith(n) or difflib.get_close_matches(n, [robot], 1, 0.75))
+            ]
         own = [k for k in ("tasks", "limits") if self.solvers.get("mink", {}).get(k)]
         if own and solver != "mink":  # mink's own objects are what --solver mink adds to the QP
             unused = " and ".join(own)

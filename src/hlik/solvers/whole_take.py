@@ -287,7 +287,7 @@ def refine(
     t_n, n = q.shape
     if t_n < 2:
         return Refinement(q.copy(), 0, 0, (0.0, 0.0), time.perf_counter() - start)
-    targets = problem.targets
+    targets = problem.tracked
     terms = criterion_terms(problem, s)
     take = Take(robot, targets.pos, targets.rot, problem.dt, s.collision_detect, terms, problem.reference)
     unlimited = np.isinf(robot.lower)
@@ -298,7 +298,8 @@ def refine(
     lin = take.linearise(q)
     fixed = _fixed(robot, q, lin, problem.dt, s)
     caller = CallerLimits(robot, limits, problem.dt) if limits else None
-    room = caller.room(q) if caller else None  # (T,) what the run left: a start below 0 stays so
+    # (T,) what the run left of each frame's room: a start below 0 may stay so, no lower
+    floor = np.minimum(caller.room(q), 0.0) - CALLER_TOLERANCE if caller else np.zeros(t_n)
     cost = first = _merit(lin, q, fixed, s)
     region, iterations, accepted, settled = s.trust_region, 0, 0, False
     miss = None  # what the torque rows' linearisation missed at the last trial, N m
@@ -321,7 +322,7 @@ def refine(
         trial_cost = _merit(at_trial, trial, fixed, s)
         safe = strong and within and at_trial.closest >= min(0.5 * s.collision_margin, lin.closest)
         if safe and caller is not None:
-            safe = bool(np.all(caller.room(trial) >= np.minimum(room, 0.0) - CALLER_TOLERANCE))
+            safe = bool(np.all(caller.room(trial) >= floor))
         if safe and trial_cost < cost:
             settled = cost - trial_cost < s.tolerance * cost
             q, lin, cost, accepted, miss = trial, at_trial, trial_cost, accepted + 1, None

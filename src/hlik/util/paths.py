@@ -168,8 +168,3 @@ def remember_corpus(folder: Path) -> Path:
     config.parent.mkdir(parents=True, exist_ok=True)
     config.write_text("\n".join([f'corpus = "{value}"', *lines]) + "\n", encoding="utf-8")
     return config
-
-
-def default_corpus() -> Path | None:
-    """The default of ``--corpus``: see :func:`corpus_setting`; ``None`` is the bundled demo."""
-    return corpus_setting()[0]
