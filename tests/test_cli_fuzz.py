@@ -228,3 +228,24 @@ def test_sigterm_ends_in_one_line_and_exit_143(tmp_path, monkeypatch):
     assert result.exit_code == 143, result.output
     assert result.stderr.strip() == "error: terminated; nothing written", result.stderr
     assert list(tmp_path.iterdir()) == []
+
+
+def test_sigterm_after_the_outputs_are_written_says_they_are(tmp_path, monkeypatch):
+    """A SIGTERM while the summary prints (the recording and trajectory already in place) had said
+    "nothing written" with both files left (a reviewer, 2 of 12 kills): it now names them."""
+    import hlik.cli.run
+
+    def terminate(*args, **kwargs):
+        raise SystemExit(128 + signal.SIGTERM)
+
+    monkeypatch.setattr(hlik.cli.run, "_report", terminate)
+    out = tmp_path / "x.rrd"
+    result = _invoke(["run", "--solver", "jm", "--rate", "0", "--out", str(out)])
+    assert result.exit_code == 143, result.output
+    err = result.stderr.strip().splitlines()
+    assert (
+        err[-1]
+        == f"error: terminated after writing {out} and {out.with_suffix('.npz')}; what followed was cut short"
+    ), err
+    assert "nothing written" not in result.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["x.npz", "x.rrd"]

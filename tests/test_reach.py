@@ -105,3 +105,27 @@ def test_a_target_out_of_reach_no_longer_turns_the_hand_for_its_position(name, s
         _, rot = tcp_poses(robot, solver.solve(p).q)
         turned.append(np.median(np.degrees(rotation_angle(rot[far, 0], p.targets.rot[far, 0]))))
     assert turned[0] < turned[1] - 2.0, turned
+
+
+def test_the_summary_says_how_often_and_how_far_a_target_lay_beyond_the_reach():
+    """Whether a hand lagged or not: the lagging row counts the frames with a target beyond its
+    arm's reach and the largest distance past it."""
+    from rich.console import Console
+
+    from hlik.cli.summary import run_summary
+    from hlik.pipeline import RunSpec, run
+
+    result = run(RunSpec(robot="dual_panda", solver="qp", span=(2.0, 2.5), whole_take=False))
+    traj, ev = result.trajectory, result.evaluation
+    beyond = np.zeros((traj.n_frames, 2))
+    beyond[10:17, 0] = np.linspace(0.01, 0.034, 7)
+
+    def lagging(b):
+        console = Console(width=400, record=True)
+        console.print(run_summary(traj, result.motion, 1.0, ev, "", b))
+        return next(line for line in console.export_text().splitlines() if "lagging" in line)
+
+    assert "a target beyond its arm's reach in 7 frames, up to 3.4 cm (tracked at the reach)" in lagging(
+        beyond
+    )
+    assert "beyond its arm's reach" not in lagging(np.zeros_like(beyond))

@@ -21,11 +21,15 @@ if TYPE_CHECKING:  # imported where used: `hlik --help` stays quick
 from hlik.cli.app import (
     DEMO_CORPUS_WARNING,
     FLAG,
+    INTERRUPTED,
+    TERMINATED,
     CorpusOpt,
     MetricOpt,
     MotionArg,
+    Said,
     console,
     one_line,
+    print_error,
     print_table,
     progress_bar,
     resolve_corpus,
@@ -216,9 +220,18 @@ def run(
         defaults = robot_defaults(robot)
         rrd, npz = _outputs(spec, defaults, out, force, _tag(spec, defaults, layout, corpus_source))
         result = _run_and_write(spec, rrd, npz, layout)
-    _report(result, rrd, npz, corpus_source)
-    if export is not None:
-        _export(result, npz, export)
+    try:
+        _report(result, rrd, npz, corpus_source)
+        if export is not None:
+            _export(result, npz, export)
+    except (KeyboardInterrupt, SystemExit) as stop:  # the outputs are written: say so
+        code = INTERRUPTED if isinstance(stop, KeyboardInterrupt) else stop.code
+        if code not in (INTERRUPTED, TERMINATED):
+            raise
+        how = "terminated" if code == TERMINATED else "interrupted"
+        cut = " (an export is written whole or not at all)" if export is not None else ""
+        print_error(f"{how} after writing {rrd} and {npz}; what followed was cut short{cut}")
+        raise Said(code) from None
 
 
 def _motion_stem(path: Path) -> str:

@@ -131,23 +131,24 @@ def run_summary(traj, motion, solve_time: float, ev, solver_note: str = "", beyo
     table.add_row("controller", controller_line(ev.controller))
     table.add_row("posture", posture_line(ev.posture))
     lag = lag_spans(fpos, traj.times) if ev.scenario == "pose" else ""  # relative: no hand targets
+    tracks = solver_spec(traj.solver).tracks_targets
+    said = ""
+    if beyond is not None and tracks and bool(np.any(beyond > 0.0)):
+        said = (
+            f"; a target beyond its arm's reach in {int(np.count_nonzero(beyond.any(axis=1)))} frames, up to "
+            f"{100 * beyond.max():.1f} cm (tracked at the reach)"
+        )
     if lag:
-        tracks = solver_spec(traj.solver).tracks_targets
         reason = (
             f"{traj.solver} maps the joints and does not track the hands"
             if not tracks
             else "out of reach, too fast for the speed limits, or outweighed by the criteria"
         )
-        out = beyond is not None and tracks and bool(np.any(beyond > 0.0))
-        said = (
-            f"; a target beyond its arm's reach in {int(np.count_nonzero(beyond.any(axis=1)))} frames, up to "
-            f"{100 * beyond.max():.1f} cm (tracked at the reach)"
-            if out
-            else ""
-        )
         table.add_row("lagging", f"hands > {100 * LAG:.0f} cm off their targets ({reason}): {lag}{said}")
     elif ev.scenario == "pose":  # said, so that a missing row is not taken for a missing check
-        table.add_row("lagging", f"none: no hand more than {100 * LAG:.0f} cm off its target in any frame")
+        table.add_row(
+            "lagging", f"none: no hand more than {100 * LAG:.0f} cm off its target in any frame{said}"
+        )
     off_pos, off_rot = relative_errors(traj.tcp_pos, traj.tcp_rot, traj.targets.pos, traj.targets.rot)
     table.add_row(
         "hands relative",

@@ -47,7 +47,8 @@ class ArmReach:
 
 
 def arm_reach(robot: Robot) -> ArmReach:
-    """The :class:`ArmReach` of ``robot`` (module docstring; deterministic, some 0.1 s)."""
+    """The :class:`ArmReach` of ``robot`` (module docstring; deterministic, 0.1-0.2 s on the
+    bundled robots)."""
     model = robot.model
     data = mujoco.MjData(model)
     data.qpos[:] = robot.home
