@@ -197,3 +197,24 @@ def test_the_demo_corpus_named_in_python_says_how_python_names_it():
         SettingsError, match=r"RunSpec.corpus 'demo': in Python the bundled demo is corpus=None"
     ):
         RunSpec(corpus="demo").check()
+
+
+@pytest.mark.parametrize("command", ["info", "run"])
+def test_a_robot_description_given_as_the_motion_says_what_it_is(command, tmp_path):
+    """A robot TOML where a motion goes (a reviewer's `hlik info robot.toml`) was read as a keypoint
+    description and refused for its 'acceleration_limits' key: it is now named for what it is."""
+    from typer.testing import CliRunner
+
+    from hlik.cli import app
+    from hlik.util.paths import robots_dir
+
+    robot = robots_dir() / "armar3.toml"
+    result = CliRunner().invoke(
+        app, [command, str(robot), "--out", str(tmp_path / "x.rrd")][: 2 if command == "info" else 4]
+    )
+    assert result.exit_code == 2, result.output
+    assert result.stderr.strip() == (
+        f"error: {robot}: a robot description, not a motion: use it as `--robot FILE` "
+        "(`hlik calibrate FILE` checks it)"
+    ), result.stderr
+    assert list(tmp_path.iterdir()) == []

@@ -112,6 +112,11 @@ def read_keypoints(path: Path) -> Keypoints:
         desc = read_toml(path, "keypoint description")
     except HlikError as e:
         raise MotionFormatError(path, str(e).split(": ", 1)[-1]) from None
+    if "arms" in desc and "velocity_limits" in desc:  # a robot description given as the motion
+        raise MotionFormatError(
+            path,
+            "a robot description, not a motion: use it as `--robot FILE` (`hlik calibrate FILE` checks it)",
+        )
     if problem := unknown_key(desc, KEYS, "the top-level table"):
         raise MotionFormatError(path, problem)
     data_name = desc.get("data")
