@@ -202,31 +202,23 @@ def test_a_failed_run_creates_no_output_folder(tmp_path, monkeypatch):
     assert list(tmp_path.iterdir()) == []
 
 
-def test_ctrl_c_ends_in_one_line_and_exit_130(tmp_path, monkeypatch):
+@pytest.mark.parametrize(
+    ("stop", "code", "how"),
+    [(KeyboardInterrupt, 130, "interrupted"), (SystemExit(128 + signal.SIGTERM), 143, "terminated")],
+)
+def test_ctrl_c_or_sigterm_ends_in_one_line_and_its_exit_code(tmp_path, monkeypatch, stop, code, how):
+    """Ctrl-C, and SIGTERM, whose handler (hlik.util.atomic.Termination) raises SystemExit(143)
+    wherever the command is: SIGTERM had ended with that code and no line (a reviewer's kill -TERM);
+    now it says so, as Ctrl-C does."""
     import hlik.pipeline
 
-    def interrupt(*args, **kwargs):
-        raise KeyboardInterrupt
+    def stopped(*args, **kwargs):
+        raise stop
 
-    monkeypatch.setattr(hlik.pipeline, "load_motion", interrupt)
+    monkeypatch.setattr(hlik.pipeline, "load_motion", stopped)
     result = _invoke(["run", "--out", str(tmp_path / "x.rrd")])
-    assert result.exit_code == 130, result.output
-    assert result.stderr.strip() == "error: interrupted; nothing written", result.stderr
-    assert list(tmp_path.iterdir()) == []
-
-
-def test_sigterm_ends_in_one_line_and_exit_143(tmp_path, monkeypatch):
-    """SIGTERM's handler (hlik.util.atomic.Termination) raises SystemExit(143) wherever the command
-    is: it ended with that code and no line (a reviewer's kill -TERM); now it says so, as Ctrl-C does."""
-    import hlik.pipeline
-
-    def terminate(*args, **kwargs):
-        raise SystemExit(128 + signal.SIGTERM)
-
-    monkeypatch.setattr(hlik.pipeline, "load_motion", terminate)
-    result = _invoke(["run", "--out", str(tmp_path / "x.rrd")])
-    assert result.exit_code == 143, result.output
-    assert result.stderr.strip() == "error: terminated; nothing written", result.stderr
+    assert result.exit_code == code, result.output
+    assert result.stderr.strip() == f"error: {how}; nothing written", result.stderr
     assert list(tmp_path.iterdir()) == []
 
 

@@ -116,6 +116,11 @@ class ControllerChecks:
         return float(np.count_nonzero(self.at_margin.any(axis=1)) / max(self.n_frames, 1))
 
     @property
+    def share_at_acceleration_limit(self) -> float:
+        """The share of frames with a joint at :data:`AT_LIMIT` of its acceleration limit or more."""
+        return float(np.count_nonzero(self.acceleration_ratio >= AT_LIMIT) / max(self.n_frames, 1))
+
+    @property
     def stop_time(self) -> float:
         """How long the joints still moving at the last frame need to stop at their acceleration
         limits, s (0 at rest; ``inf`` if a moving joint has no limit)."""
@@ -147,8 +152,8 @@ class ControllerChecks:
         does not give, and the time to stop without acceleration limits, are null (not 0, inf)."""
         accel_joint, _ = self.peak(self.acceleration, self.acceleration_limit)
         torque_joint, torque = self.peak(self.torque, self.effort_limit)
-        parked = self.at_margin.mean(axis=0) if self.n_frames else np.zeros(0)  # (n,) share per joint
-        margin_joint = self.joint_names[int(parked.argmax())] if parked.any() else ""
+        parked = self.at_margin.mean(axis=0) if self.n_frames else np.zeros(len(self.joint_names))
+        most = int(parked.argmax()) if parked.size else 0  # the joint parked on the margin most
 
         def ratio(values: np.ndarray, given: bool) -> float | None:
             return float(values.max(initial=0.0)) if given else None
@@ -158,9 +163,7 @@ class ControllerChecks:
             "max_acceleration_ratio": ratio(self.acceleration_ratio, self.has_acceleration_limits),
             "acceleration_joint": accel_joint,
             "frames_over_acceleration": self.frames_over_acceleration,
-            "share_at_acceleration_limit": float(np.mean(self.acceleration_ratio >= AT_LIMIT))
-            if self.n_frames
-            else 0.0,
+            "share_at_acceleration_limit": self.share_at_acceleration_limit,
             "max_jerk": float(self.jerk.max(initial=0.0)),
             "max_jerk_ratio": ratio(self.jerk_ratio, self.has_jerk_limits),
             "jerk_joint": self.jerk_joint,
@@ -172,8 +175,8 @@ class ControllerChecks:
             "frames_at_stop": int(np.count_nonzero(self.at_stop)),
             "share_at_stop": self.share_at_stop,
             "share_at_margin": self.share_at_margin,
-            "margin_joint": margin_joint,
-            "margin_joint_share": float(parked[parked.argmax()]) if parked.size else 0.0,
+            "margin_joint": self.joint_names[most] if parked.any() else "",
+            "margin_joint_share": float(parked[most]) if parked.size else 0.0,
             "base_height": self.base_height,
             "lowest_point": self.lowest_point,
             "end_speed": float(np.max(np.abs(self.end_speed), initial=0.0)),

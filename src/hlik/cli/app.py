@@ -43,6 +43,15 @@ INTERRUPTED = 130  # exit code of a command ended by Ctrl-C (128 + SIGINT)
 TERMINATED = 143  # exit code of a command ended by SIGTERM (hlik.util.atomic.Termination)
 
 
+def stopped_by(stop: BaseException) -> int | None:
+    """The exit code of the Ctrl-C (:data:`INTERRUPTED`) or SIGTERM (:data:`TERMINATED`) that
+    ``stop`` is (a ``KeyboardInterrupt``, or the ``SystemExit`` SIGTERM's handler raises), else None."""
+    if isinstance(stop, KeyboardInterrupt):
+        return INTERRUPTED
+    code = stop.code if isinstance(stop, SystemExit) else None
+    return code if code in (INTERRUPTED, TERMINATED) else None
+
+
 class Said(SystemExit):
     """A command's exit by Ctrl-C or SIGTERM that it has already explained in its own line (a
     study's kept cells): :class:`_OneLineErrors` adds none."""

@@ -21,7 +21,6 @@ if TYPE_CHECKING:  # imported where used: `hlik --help` stays quick
 from hlik.cli.app import (
     DEMO_CORPUS_WARNING,
     FLAG,
-    INTERRUPTED,
     TERMINATED,
     CorpusOpt,
     MetricOpt,
@@ -33,6 +32,7 @@ from hlik.cli.app import (
     print_table,
     progress_bar,
     resolve_corpus,
+    stopped_by,
     warn,
 )
 from hlik.cli.outputs import check_outputs, file_stem, write_outputs
@@ -225,8 +225,8 @@ def run(
         if export is not None:
             _export(result, npz, export)
     except (KeyboardInterrupt, SystemExit) as stop:  # the outputs are written: say so
-        code = INTERRUPTED if isinstance(stop, KeyboardInterrupt) else stop.code
-        if code not in (INTERRUPTED, TERMINATED):
+        code = stopped_by(stop)
+        if code is None:
             raise
         how = "terminated" if code == TERMINATED else "interrupted"
         cut = " (an export is written whole or not at all)" if export is not None else ""

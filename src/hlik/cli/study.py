@@ -13,7 +13,6 @@ from rich.table import Table
 from rich.text import Text
 
 from hlik.cli.app import (
-    INTERRUPTED,
     MOTION_FILES,
     TERMINATED,
     CorpusOpt,
@@ -24,6 +23,7 @@ from hlik.cli.app import (
     print_table,
     progress_bar,
     resolve_corpus,
+    stopped_by,
     warn,
 )
 from hlik.util.errors import HlikError
@@ -118,8 +118,8 @@ def _stopped(stop: BaseException, out: Path, n_cells: int) -> None:
     """Say what a study stopped by Ctrl-C or SIGTERM kept: the finished cells (each written whole),
     which the same command reuses; before, SIGTERM ended it silently and Ctrl-C said "nothing
     written" over the kept cells."""
-    code = getattr(stop, "code", None)
-    if isinstance(stop, SystemExit) and code not in (TERMINATED, INTERRUPTED):
+    code = stopped_by(stop)
+    if code is None:
         return
     how = "terminated" if code == TERMINATED else "interrupted"
     kept = len(list((out / "cells").glob("*.parquet"))) if (out / "cells").is_dir() else 0
@@ -131,7 +131,7 @@ def _stopped(stop: BaseException, out: Path, n_cells: int) -> None:
         # said and decided: a Ctrl-C delivered late (one held back while a cell was written) must
         # not turn this exit into death by SIGINT (exit -2 instead of 130, seen once in CI)
         signal.signal(signal.SIGINT, signal.SIG_IGN)
-    raise Said(TERMINATED if code == TERMINATED else INTERRUPTED) from None
+    raise Said(code) from None
 
 
 def _takes(folder: Path) -> list[Path]:

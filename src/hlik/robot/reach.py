@@ -13,6 +13,7 @@ sphere is larger than the reach there: a target it holds may still be out of rea
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import mujoco
@@ -46,9 +47,10 @@ class ArmReach:
         return np.maximum(np.linalg.norm(pos - self.centre, axis=-1) - self.radius, 0.0)
 
 
+@functools.lru_cache(maxsize=32)  # per robot, as floor_height: every problem and summary of a run asks
 def arm_reach(robot: Robot) -> ArmReach:
     """The :class:`ArmReach` of ``robot`` (module docstring; deterministic, 0.1-0.2 s on the
-    bundled robots)."""
+    bundled robots, once per robot)."""
     model = robot.model
     data = mujoco.MjData(model)
     data.qpos[:] = robot.home

@@ -298,8 +298,9 @@ def refine(
     lin = take.linearise(q)
     fixed = _fixed(robot, q, lin, problem.dt, s)
     caller = CallerLimits(robot, limits, problem.dt) if limits else None
+    rows = caller.at(q) if caller else None  # the caller's rows at the current motion
     # (T,) what the run left of each frame's room: a start below 0 may stay so, no lower
-    floor = np.minimum(caller.room(q), 0.0) - CALLER_TOLERANCE if caller else np.zeros(t_n)
+    floor = np.minimum(rows.room, 0.0) - CALLER_TOLERANCE if rows else np.zeros(t_n)
     cost = first = _merit(lin, q, fixed, s)
     region, iterations, accepted, settled = s.trust_region, 0, 0, False
     miss = None  # what the torque rows' linearisation missed at the last trial, N m
@@ -307,7 +308,7 @@ def refine(
         region = 0.0
     while iterations < s.iterations and region >= s.min_trust_region:
         iterations += 1
-        step = _step(lin, q, fixed, region, s, miss, caller.rows(q) if caller else None)
+        step = _step(lin, q, fixed, region, s, miss, rows)
         if step is None:
             region, miss = region / 2.0, None
             continue
@@ -321,11 +322,13 @@ def refine(
         within = np.all(np.linalg.norm(at_trial.position, axis=-1) <= fixed.reach)
         trial_cost = _merit(at_trial, trial, fixed, s)
         safe = strong and within and at_trial.closest >= min(0.5 * s.collision_margin, lin.closest)
-        if safe and caller is not None:
-            safe = bool(np.all(caller.room(trial) >= floor))
+        rows_at_trial = caller.at(trial) if safe and caller else None
+        if rows_at_trial is not None:
+            safe = bool(np.all(rows_at_trial.room >= floor))
         if safe and trial_cost < cost:
             settled = cost - trial_cost < s.tolerance * cost
             q, lin, cost, accepted, miss = trial, at_trial, trial_cost, accepted + 1, None
+            rows = rows_at_trial  # computed where there is a caller: the step was safe
             region = min(1.5 * region, s.max_trust_region)
             if settled:
                 break
@@ -429,12 +432,12 @@ def _step(
     region: float,
     s: WholeTakeSettings,
     miss: np.ndarray | None = None,
-    caller: tuple[sp.csr_matrix, np.ndarray] | None = None,
+    caller: CallerRows | None = None,
 ) -> np.ndarray | None:
     """(T, n) the QP's step from ``q`` within the trust ``region``, rad, or None where it has no
     solution; ``miss`` (T, k), N m, shifts the torque rows by what their linearisation missed at
     the last trial (:func:`_torque_miss`); ``caller``: a caller's limit rows ``G dq <= h``
-    (:meth:`CallerLimits.rows`)."""
+    at ``q`` (:meth:`CallerLimits.at`)."""
     t_n, n = q.shape
     jo, jp = lin.orientation_jacobian, lin.position_jacobian
     change = q - fixed.run
@@ -487,9 +490,9 @@ def _step(
             cap, shift = fixed.strength.reshape(-1)[watched], miss.reshape(-1)[watched]
             rows.extend([torque_rows, -torque_rows])
             upper.extend([cap - value[watched] - shift, cap + value[watched] + shift])
-    if caller is not None and caller[0].shape[0]:
-        rows.append(caller[0])
-        upper.append(np.maximum(caller[1], 0.0))  # a row the start breaks moves to it
+    if caller is not None and caller.g.shape[0]:
+        rows.append(caller.g)
+        upper.append(np.maximum(caller.h, 0.0))  # a row the start breaks moves to it
     near = [(t, d, g) for t, (d, g) in enumerate(lin.pairs) if len(d)]
     if near:  # each near pair's distance d + g dq_t at least the margin (or d)
         frames = np.concatenate([np.full(len(d), t) for t, d, _ in near])
@@ -523,10 +526,21 @@ def _step(
     return np.clip(x, box_lo, box_hi).reshape(t_n, n)
 
 
+@dataclass(frozen=True, eq=False)
+class CallerRows:
+    """A caller's limit rows over the whole take at one motion: ``g @ dq <= h``, (K, T n) and
+    (K,), every frame's stacked; ``room`` (T,) each frame's least ``h`` (0 on the limit, inf where
+    no row is active)."""
+
+    g: sp.csr_matrix
+    h: np.ndarray
+    room: np.ndarray
+
+
 class CallerLimits:
     """A caller's ``mink.Limit`` objects over the whole take: each frame's rows ``G dq_t <= h`` at its
     configuration (:func:`hlik.solvers.frames.limit_rows`, the frame-by-frame solvers' own), placed
-    in the take's step; ``h`` is a frame's room, 0 on the limit."""
+    in the take's step."""
 
     def __init__(self, robot: Robot, limits: Sequence, dt: float):
         import mink  # the caller's limits are mink's: it is there
@@ -534,21 +548,17 @@ class CallerLimits:
         self.limits, self.dt, self.n = tuple(limits), dt, robot.dof
         self.config = mink.Configuration(robot.model, robot.home)
 
-    def _frames(self, q: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
-        out = []
+    def at(self, q: np.ndarray) -> CallerRows:
+        """The :class:`CallerRows` at the motion ``q`` (T, n)."""
+        frames = []
         for q_t in q:
             self.config.update(q_t)
-            out.append(limit_rows(self.limits, self.config, self.dt, self.n))
-        return out
-
-    def rows(self, q: np.ndarray) -> tuple[sp.csr_matrix, np.ndarray]:
-        """((K, T n), (K,)) every frame's rows at ``q`` (T, n), stacked."""
-        frames = self._frames(q)
-        return sp.block_diag([g for g, _ in frames], format="csr"), np.concatenate([h for _, h in frames])
-
-    def room(self, q: np.ndarray) -> np.ndarray:
-        """(T,) each frame's least room ``h`` at ``q`` (T, n) (inf where no row is active)."""
-        return np.array([h.min(initial=np.inf) for _, h in self._frames(q)])
+            frames.append(limit_rows(self.limits, self.config, self.dt, self.n))
+        return CallerRows(
+            sp.block_diag([g for g, _ in frames], format="csr"),
+            np.concatenate([h for _, h in frames]),
+            np.array([h.min(initial=np.inf) for _, h in frames]),
+        )
 
 
 def _torque_rows(jac: np.ndarray, t_n: int, n: int) -> sp.csr_matrix:
